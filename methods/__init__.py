@@ -1,0 +1,1 @@
+"""methods plug-ins for prtbench (registered through entry points in pyproject.toml)."""

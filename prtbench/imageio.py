@@ -1,0 +1,173 @@
+"""Image input/output: OpenEXR and Radiance HDR in, EXR and PNG out, the display transform.
+
+HDR images are float32 linear RGB arrays of shape (H, W, 3), row 0 at the top. Display images
+(DESIGN.md §7) are ``clip(srgb(exposure · hdr), 0, 1)``; metrics are computed on them as float.
+All writes are atomic (temporary file, then rename).
+"""
+
+from __future__ import annotations
+
+import re
+import zlib
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from .cache import atomic_path
+from .errors import InvalidInputError
+
+
+def read_exr(path: str | Path) -> np.ndarray:
+    """Read an OpenEXR file's RGB(A) channels as float32 (H, W, 3).
+
+    Raises
+    ------
+    InvalidInputError
+        If the file is missing, unreadable or has no RGB / Y channels.
+    """
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise InvalidInputError(f"EXR file not found: {path}")
+    try:
+        with OpenEXR.File(str(path), separate_channels=False) as exr:
+            channels = exr.channels()
+    except Exception as exc:  # noqa: BLE001 - the binding raises several types
+        raise InvalidInputError(f"cannot read EXR '{path}': {exc}") from None
+    for name in ("RGB", "RGBA"):
+        if name in channels:
+            return np.ascontiguousarray(channels[name].pixels[..., :3], dtype=np.float32)
+    # Separate channels (R, G, B) or a luminance-only file.
+    with OpenEXR.File(str(path), separate_channels=True) as exr:
+        chans = exr.channels()
+        if all(c in chans for c in "RGB"):
+            return np.stack([chans[c].pixels for c in "RGB"], axis=-1).astype(np.float32)
+        if "Y" in chans:
+            y = chans["Y"].pixels.astype(np.float32)
+            return np.repeat(y[..., None], 3, axis=-1)
+    raise InvalidInputError(f"EXR '{path}' has no RGB or Y channels (has {sorted(chans)})")
+
+
+def write_exr(path: str | Path, image: np.ndarray, *, metadata: dict[str, str] | None = None) -> None:
+    """Atomically write float32 (H, W, 3) linear RGB to an EXR (ZIP compression)."""
+    import OpenEXR
+
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise InvalidInputError(f"write_exr expects (H, W, 3), got {image.shape}")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (metadata or {}).items():
+        header[key] = str(value)
+    with atomic_path(Path(path)) as tmp:
+        with OpenEXR.File(header, {"RGB": image}) as exr:
+            exr.write(str(tmp))
+
+
+def read_exr_metadata(path: str | Path) -> dict[str, str]:
+    """String attributes of an EXR header (what :func:`write_exr` stored as metadata)."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as exr:
+        return {k: v for k, v in exr.header().items() if isinstance(v, str)}
+
+
+def read_hdr(path: str | Path) -> np.ndarray:
+    """Read a Radiance RGBE (.hdr/.pic) file, flat or RLE, as float32 (H, W, 3)."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InvalidInputError(f"cannot read HDR '{path}': {exc.strerror}") from None
+    header_end = data.find(b"\n\n")
+    if not data.startswith(b"#?") or header_end < 0:
+        raise InvalidInputError(f"'{path}' is not a Radiance HDR file")
+    header = data[:header_end].decode("ascii", "replace")
+    if "FORMAT=32-bit_rle_xyze" in header:
+        raise InvalidInputError(f"HDR '{path}' is XYZE; only RGBE is accepted")
+    line_end = data.find(b"\n", header_end + 2)
+    m = re.match(r"([-+])Y (\d+) ([-+])X (\d+)", data[header_end + 2:line_end].decode())
+    if not m:
+        raise InvalidInputError(f"HDR '{path}': unsupported resolution line")
+    height, width = int(m.group(2)), int(m.group(4))
+    buf = memoryview(data)[line_end + 1:]
+    rgbe = np.zeros((height, width, 4), dtype=np.uint8)
+    pos = 0
+    try:
+        for row in range(height):
+            if width >= 8 and width < 32768 and buf[pos] == 2 and buf[pos + 1] == 2:
+                pos += 4  # new-style RLE scanline: 4 planes, each run-length coded
+                for c in range(4):
+                    x = 0
+                    while x < width:
+                        count = buf[pos]
+                        pos += 1
+                        if count > 128:
+                            count -= 128
+                            rgbe[row, x:x + count, c] = buf[pos]
+                            pos += 1
+                        else:
+                            rgbe[row, x:x + count, c] = np.frombuffer(buf[pos:pos + count], np.uint8)
+                            pos += count
+                        x += count
+            else:
+                rgbe[row] = np.frombuffer(buf[pos:pos + 4 * width], np.uint8).reshape(width, 4)
+                pos += 4 * width
+    except (IndexError, ValueError):
+        raise InvalidInputError(f"HDR '{path}' is truncated or corrupt") from None
+    exponent = rgbe[..., 3].astype(np.int32)
+    scale = np.where(exponent > 0, np.ldexp(1.0, exponent - 136), 0.0)
+    img = rgbe[..., :3].astype(np.float64) * scale[..., None]
+    if m.group(1) == "+":
+        img = img[::-1]
+    return img.astype(np.float32)
+
+
+def read_hdr_image(path: str | Path) -> np.ndarray:
+    """Read an EXR or Radiance HDR environment image by extension."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        return read_exr(path)
+    if suffix in (".hdr", ".pic", ".rgbe"):
+        return read_hdr(path)
+    raise InvalidInputError(f"unsupported HDR image '{path}'; accepted: .exr, .hdr, .pic")
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function on linear values (no clipping)."""
+    x = np.maximum(np.asarray(x, dtype=np.float64), 0.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def display(hdr: np.ndarray, *, exposure: float = 1.0) -> np.ndarray:
+    """Display image of DESIGN.md §7: exposure → sRGB → clip to [0, 1], float32 (H, W, 3)."""
+    return np.clip(linear_to_srgb(np.asarray(hdr, np.float64) * exposure), 0.0, 1.0).astype(np.float32)
+
+
+def write_png(path: str | Path, image: np.ndarray) -> None:
+    """Atomically write a [0, 1] float (H, W, 3) or (H, W) image as an 8-bit PNG."""
+    img = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=-1)
+    rgb = np.round(img[..., :3] * 255.0).astype(np.uint8)
+    h, w, _ = rgb.shape
+    raw = b"".join(b"\x00" + rgb[y].tobytes() for y in range(h))
+
+    def chunk(tag: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + tag + body + struct.pack(">I", zlib.crc32(tag + body))
+
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+           + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_bytes(png)
+
+
+def read_png(path: str | Path) -> np.ndarray:
+    """Read a PNG as float32 [0, 1] (H, W, 3) (uses scikit-image)."""
+    from skimage.io import imread
+
+    img = imread(str(path)).astype(np.float32) / 255.0
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=-1)
+    return img[..., :3]

@@ -1,0 +1,308 @@
+"""Real spherical harmonics and the SH algebra every PRT method shares.
+
+Convention (DESIGN.md §5)
+-------------------------
+Real, orthonormal SH **without** the Condon–Shortley phase, polar axis +Z of the world frame
+(θ from +Z, φ = atan2(y, x)), flat index ``i = l(l+1) + m``; ``n`` bands means ``n²``
+coefficients (l = 0 … n−1)::
+
+    Y_lm = √2 K_l^m P_l^m(cos θ) cos(mφ)        m > 0
+    Y_l0 = K_l^0 P_l^0(cos θ)
+    Y_lm = √2 K_l^|m| P_l^|m|(cos θ) sin(|m|φ)  m < 0
+
+with K_l^m = √((2l+1)/(4π) · (l−m)!/(l+m)!) and P_l^m the associated Legendre functions without
+the (−1)^m factor. Evaluation uses the normalised-Legendre recurrence with sin^m θ·cos/sin(mφ)
+taken as Re/Im of (x + iy)^m, so it is stable to high bands (no factorials, no atan2) in float64.
+
+Coefficient layout: a sampled function's coefficients are ``(n²,)`` or ``(n², C)`` (coefficients
+first, e.g. RGB lights); per-point transfer vectors are ``(N, n²)`` (coefficients last).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+MAX_DENSE_TRIPLE_BANDS = 8
+
+
+def n_coeffs(bands: int) -> int:
+    """Number of coefficients of ``bands`` bands (``bands**2``)."""
+    return bands * bands
+
+
+def index(l: int, m: int) -> int:
+    """Flat index of (l, m): ``l(l+1) + m``."""
+    return l * (l + 1) + m
+
+
+def lm_of(bands: int) -> tuple[np.ndarray, np.ndarray]:
+    """Band l and order m of each flat index, each (bands²,) int."""
+    ls = np.concatenate([np.full(2 * l + 1, l) for l in range(bands)]) if bands else np.zeros(0, int)
+    ms = np.concatenate([np.arange(-l, l + 1) for l in range(bands)]) if bands else np.zeros(0, int)
+    return ls.astype(int), ms.astype(int)
+
+
+def _check_bands(bands: int, *, low: int = 1, high: int = 64) -> int:
+    if int(bands) != bands or not (low <= bands <= high):
+        raise InvalidInputError(f"sh bands={bands!r}; accepted: integers {low}..{high}")
+    return int(bands)
+
+
+def eval_sh(dirs: np.ndarray, bands: int) -> np.ndarray:
+    """Evaluate all real SH of ``bands`` bands at unit directions.
+
+    Parameters
+    ----------
+    dirs : ndarray, shape (N, 3)
+        Unit directions (normalised here in float64).
+    bands : int
+        Number of bands n.
+
+    Returns
+    -------
+    ndarray, shape (N, n²), float64
+    """
+    bands = _check_bands(bands)
+    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    n = len(d)
+    out = np.zeros((n, bands * bands))
+    # (x + iy)^m = sin^m θ · e^{imφ}: its real/imaginary parts carry the φ dependence.
+    re, im = np.ones(n), np.zeros(n)
+    qmm = np.full(n, math.sqrt(1.0 / (4.0 * math.pi)))  # normalised P_m^m without sin^m θ
+    for m in range(bands):
+        if m > 0:
+            qmm = qmm * math.sqrt((2 * m + 1) / (2 * m))
+            re, im = re * x - im * y, re * y + im * x
+        q_prev2 = None
+        q_prev = qmm
+        for l in range(m, bands):
+            if l == m:
+                q = qmm
+            elif l == m + 1:
+                q = math.sqrt(2 * m + 3) * z * qmm
+            else:
+                a = math.sqrt((4 * l * l - 1) / (l * l - m * m))
+                b = math.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
+                q = a * (z * q_prev - b * q_prev2)
+            if l > m:
+                q_prev2, q_prev = q_prev, q
+            if m == 0:
+                out[:, index(l, 0)] = q
+            else:
+                out[:, index(l, m)] = math.sqrt(2.0) * q * re
+                out[:, index(l, -m)] = math.sqrt(2.0) * q * im
+    return out
+
+
+def project(values: np.ndarray, dirs: np.ndarray, weights: np.ndarray, bands: int) -> np.ndarray:
+    """SH coefficients of a sampled spherical function, ``Σ_p w_p f(ω_p) Y_i(ω_p)``.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N,) or (N, C)
+        Function values at the sample directions.
+    dirs : ndarray, shape (N, 3)
+        Unit sample directions.
+    weights : ndarray, shape (N,)
+        Quadrature weights (solid angles; they sum to 4π for a full-sphere rule).
+    bands : int
+
+    Returns
+    -------
+    ndarray, shape (n²,) or (n², C), float64
+    """
+    values = np.asarray(values, dtype=np.float64)
+    y = eval_sh(dirs, bands) * np.asarray(weights, dtype=np.float64).reshape(-1, 1)
+    return y.T @ values
+
+
+def _legendre_moments(s: float, bands: int) -> np.ndarray:
+    """I_l(s) = ∫_0^1 μ^s P_l(μ) dμ for l < bands, exact for any real s >= 0.
+
+    Uses I_0 = 1/(s+1), I_1 = 1/(s+2), I_l = (s − l + 2)/(s + l + 1) · I_{l−2}, which follows
+    from Bonnet's recurrence and integration by parts: a product of ratios, so it neither
+    overflows nor cancels, unlike expanding P_l or quadrature of a steep μ^s.
+    """
+    out = np.zeros(bands)
+    out[0] = 1.0 / (s + 1.0)
+    if bands > 1:
+        out[1] = 1.0 / (s + 2.0)
+    for l in range(2, bands):
+        out[l] = (s - l + 2.0) / (s + l + 1.0) * out[l - 2]
+    return out
+
+
+def band_norms(bands: int) -> np.ndarray:
+    """N_l = √((2l+1)/(4π)) for l < bands."""
+    l = np.arange(bands)
+    return np.sqrt((2 * l + 1) / (4 * np.pi))
+
+
+def clamped_cosine_zonal(bands: int) -> np.ndarray:
+    """Zonal coefficients g_l = 2π ∫ max(μ, 0) N_l P_l(μ) dμ of the clamped cosine, (bands,).
+
+    g_0 = √π/2, g_1 = √(π/3), g_2 = √(5π)/8, odd l > 1 vanish.
+    """
+    bands = _check_bands(bands)
+    return 2.0 * np.pi * band_norms(bands) * _legendre_moments(1.0, bands)
+
+
+def phong_zonal(s: float, bands: int) -> np.ndarray:
+    """Zonal coefficients of the normalised Phong lobe (s+1)/(2π)·max(μ, 0)^s, (bands,).
+
+    Exact for any real s in [0, 1e4] (see :func:`_legendre_moments`); g_0 = N_0 for every s.
+    """
+    bands = _check_bands(bands)
+    s = float(s)
+    if not (0.0 <= s <= 1e4) or not math.isfinite(s):
+        raise InvalidInputError(f"Phong exponent s={s!r}; accepted: [0, 10000]")
+    return band_norms(bands) * (s + 1.0) * _legendre_moments(s, bands)
+
+
+def zonal_convolve(coeffs: np.ndarray, zonal: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Convolve SH functions with a zonal lobe and evaluate along ``axis``.
+
+    (g ⋆ H)(a) = Σ_l √(4π/(2l+1)) g_l Σ_m H_lm Y_lm(a).
+
+    Parameters
+    ----------
+    coeffs : ndarray, shape (..., n²)
+        SH coefficients, coefficients on the last axis.
+    zonal : ndarray, shape (n,)
+        Zonal coefficients g_l of the lobe (e.g. :func:`phong_zonal`).
+    axis : ndarray, shape (..., 3)
+        Lobe axes (broadcast against ``coeffs[..., 0]``).
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    coeffs = np.asarray(coeffs, dtype=np.float64)
+    n = len(zonal)
+    if coeffs.shape[-1] != n * n:
+        raise InvalidInputError(
+            f"zonal_convolve: {coeffs.shape[-1]} coefficients do not match {n} zonal bands")
+    axis = np.asarray(axis, dtype=np.float64)
+    lead = np.broadcast_shapes(coeffs.shape[:-1], axis.shape[:-1])
+    y = eval_sh(np.broadcast_to(axis, lead + (3,)).reshape(-1, 3), n).reshape(lead + (n * n,))
+    ls, _ = lm_of(n)
+    kernel = np.sqrt(4 * np.pi / (2 * ls + 1)) * np.asarray(zonal, dtype=np.float64)[ls]
+    return np.sum(np.broadcast_to(coeffs, lead + (n * n,)) * kernel * y, axis=-1)
+
+
+def sphere_quadrature(degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """A product Gauss–Legendre × uniform-φ rule exact for polynomials of ``degree`` on S².
+
+    Returns
+    -------
+    dirs : ndarray, shape (N, 3)
+    weights : ndarray, shape (N,), summing to 4π
+    """
+    n_mu = degree // 2 + 1
+    n_phi = degree + 1
+    mu, w_mu = np.polynomial.legendre.leggauss(n_mu)
+    phi = (np.arange(n_phi) + 0.5) * 2 * np.pi / n_phi
+    mu_g, phi_g = np.meshgrid(mu, phi, indexing="ij")
+    sin_t = np.sqrt(1 - mu_g**2)
+    dirs = np.stack([sin_t * np.cos(phi_g), sin_t * np.sin(phi_g), mu_g], axis=-1).reshape(-1, 3)
+    weights = np.repeat(w_mu * 2 * np.pi / n_phi, n_phi)
+    return dirs, weights
+
+
+@lru_cache(maxsize=8)
+def _triple_dense(bands: int) -> np.ndarray:
+    # The product of three SH of band <= n-1 is a polynomial of degree <= 3(n-1): the rule is exact.
+    dirs, weights = sphere_quadrature(3 * (bands - 1))
+    y = eval_sh(dirs, bands)
+    gamma = np.einsum("p,pi,pj,pk->ijk", weights, y, y, y, optimize=True)
+    gamma[np.abs(gamma) < 1e-13] = 0.0
+    gamma.setflags(write=False)
+    return gamma
+
+
+def triple_product_tensor(bands: int) -> np.ndarray:
+    """Exact Γ_ijk = ∫ Y_i Y_j Y_k dω, dense float64 (n², n², n²), for bands <= 8.
+
+    Γ_0jk = δ_jk/√(4π); Γ vanishes unless l1+l2+l3 is even and the l's satisfy the triangle
+    inequality.
+    """
+    bands = _check_bands(bands, high=MAX_DENSE_TRIPLE_BANDS)
+    return _triple_dense(bands)
+
+
+def triple_product_sparse(bands: int) -> tuple[np.ndarray, np.ndarray]:
+    """Non-zero entries of Γ, cached on disk.
+
+    Returns
+    -------
+    ijk : ndarray, shape (K, 3), int32
+    values : ndarray, shape (K,), float64
+    """
+    bands = _check_bands(bands, high=MAX_DENSE_TRIPLE_BANDS)
+    from .cache import cached_arrays
+
+    def compute() -> dict[str, np.ndarray]:
+        gamma = _triple_dense(bands)
+        ijk = np.argwhere(gamma != 0).astype(np.int32)
+        return {"ijk": ijk, "values": gamma[tuple(ijk.T)]}
+
+    arrays = cached_arrays("sh-triple", f"gamma-v1-b{bands}", compute)
+    return arrays["ijk"], arrays["values"]
+
+
+def triple_product(transfer: np.ndarray, light: np.ndarray, bands: int) -> np.ndarray:
+    """H_k = Σ_ij Γ_ijk T_i L_j: the transferred incident radiance (TP).
+
+    Parameters
+    ----------
+    transfer : ndarray, shape (N, n²)
+    light : ndarray, shape (n²,) or (n², C)
+
+    Returns
+    -------
+    ndarray, shape (N, n²) or (N, n², C)
+    """
+    return np.einsum("ni,ik...->nk...", np.asarray(transfer, np.float64), tpfl_matrix(light, bands))
+
+
+def tpfl_matrix(light_coeffs: np.ndarray, bands: int) -> np.ndarray:
+    """Fixed-light triple-product matrix M_ik = Σ_j Γ_ijk L_j.
+
+    Parameters
+    ----------
+    light_coeffs : ndarray, shape (n²,) or (n², C)
+
+    Returns
+    -------
+    ndarray, shape (n², n²) or (n², n², C); H_k = Σ_i T_i M_ik.
+    """
+    gamma = triple_product_tensor(bands)
+    light = np.asarray(light_coeffs, dtype=np.float64)
+    if light.shape[0] != bands * bands:
+        raise InvalidInputError(
+            f"tpfl_matrix: light has {light.shape[0]} coefficients, expected {bands * bands}")
+    return np.einsum("ijk,j...->ik...", gamma, light)
+
+
+def window(bands: int, *, kind: str = "none", width: float | None = None) -> np.ndarray:
+    """Per-band de-ringing window (Sloan, "Stupid SH Tricks"), (bands,).
+
+    ``kind`` is ``"none"`` (all ones), ``"hanning"`` ((1 + cos(πl/w))/2 for l <= w) or
+    ``"lanczos"`` (sinc(l/w)); ``width`` defaults to ``bands``.
+    """
+    w = float(width if width is not None else bands)
+    l = np.arange(bands, dtype=np.float64)
+    if kind == "none":
+        return np.ones(bands)
+    if kind == "hanning":
+        return np.where(l <= w, 0.5 * (1 + np.cos(np.pi * l / w)), 0.0)
+    if kind == "lanczos":
+        return np.sinc(l / w)
+    raise InvalidInputError(f"unknown SH window '{kind}'; known: none, hanning, lanczos")

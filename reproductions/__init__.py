@@ -1,0 +1,1 @@
+"""reproductions plug-ins for prtbench (registered through entry points in pyproject.toml)."""

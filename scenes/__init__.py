@@ -1,0 +1,1 @@
+"""scenes plug-ins for prtbench (registered through entry points in pyproject.toml)."""

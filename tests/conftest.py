@@ -1,0 +1,13 @@
+"""Shared fixtures: every test run gets its own empty cache and results store."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def _isolated_cache(tmp_path_factory, monkeypatch):
+    # One cache per session keeps tests fast (transfer, references) but never touches ~/.cache.
+    root = tmp_path_factory.getbasetemp() / "prtbench-cache"
+    monkeypatch.setenv("PRTBENCH_CACHE", str(root))
+    yield
