@@ -74,6 +74,8 @@ class ResultRow:
         Triangle count of the rendered scene (tessellation sweeps group by it).
     scene_params : dict
         The scene builder's parameters (e.g. ``ground_subdivisions``).
+    timing_source : str
+        ``timer-query`` (GPU) or ``wall+finish`` (software rasteriser), see prtbench.gl.
     """
 
     method: str
@@ -101,6 +103,7 @@ class ResultRow:
     reference_noise: float | None = None
     scene_triangles: int | None = None
     scene_params: dict = field(default_factory=dict)
+    timing_source: str = ""
 
     def __post_init__(self) -> None:
         for name in _JSON_FIELDS:  # rows read back from text, or built by hand from JSON

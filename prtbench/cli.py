@@ -1,0 +1,219 @@
+"""The ``prtbench`` command.
+
+Subcommands: ``list``, ``assets``, ``run``, ``reference``, ``results``, ``table``, ``regress``.
+User mistakes print one line (``prtbench: error: …``) and exit with status 2. Heavy modules
+(torch, moderngl, embreex, mitsuba) are imported only by the subcommands that need them, so
+``prtbench list`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import PrtbenchError
+
+LIST_KINDS = ("methods", "scenes", "lights", "tables", "profiles", "assets")
+
+
+def _list(args: argparse.Namespace) -> int:
+    if args.kind == "methods":
+        from .method import METHODS
+
+        names = METHODS.names()
+    elif args.kind == "scenes":
+        from .scene import SCENES
+
+        names = SCENES.names()
+    elif args.kind == "lights":
+        from .lights import LIGHTS
+
+        names = LIGHTS.names()
+    elif args.kind == "tables":
+        from .reproduction import TABLES
+
+        names = TABLES.names()
+    elif args.kind == "profiles":
+        from .profiles import PROFILES
+
+        names = [f"{p.name}: {p.width}x{p.height}, {p.views} views, reference {p.reference_spp} spp"
+                 for p in PROFILES.values()]
+    else:
+        from .assets import ASSETS
+
+        names = list(ASSETS)
+    print("\n".join(names))
+    return 0
+
+
+def _assets(args: argparse.Namespace) -> int:
+    from . import assets
+
+    if args.action == "list":
+        for name in assets.ASSETS:
+            print(f"{name}\t{'fetched' if assets.is_fetched(name) else 'missing'}")
+        return 0
+    paths = assets.fetch(args.name, force=args.force)
+    print(f"fetched {len(paths)} file(s) into {assets.assets_root()}")
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from .config import parse_overrides
+    from .runner import RunRequest, format_summary, parse_resolution, prepare, execute
+
+    request = RunRequest(
+        method=args.method, scene=args.scene, variant=args.variant, light=args.light,
+        views=args.views, resolution=parse_resolution(args.res) if args.res else None,
+        profile=args.profile, reference=args.reference, overrides=parse_overrides(args.set or []),
+        scene_params=parse_overrides(args.scene_param or []), out_dir=Path(args.out),
+        json_path=Path(args.json) if args.json else None,
+        results_path=Path(args.results) if args.results else None,
+        store_results=not args.no_store)
+    prepared = prepare(request)  # validates everything before anything is written
+    summary = execute(prepared, progress=not args.quiet)
+    print(format_summary(summary))
+    if request.out_dir is not None:
+        out = request.out_dir / summary.method / f"{summary.scene}-{summary.variant}" / summary.light
+        print(f"images and summary.json: {out}")
+    if request.store_results:
+        from .results import default_path
+
+        print(f"results store: {request.results_path or default_path()}")
+    return 0
+
+
+def _reference(args: argparse.Namespace) -> int:
+    from .lights import get_light
+    from .profiles import get_profile
+    from .reference import render_references
+    from .runner import parse_resolution
+    from .scene import get_scene
+
+    profile = get_profile(args.profile)
+    scene = get_scene(args.scene, variant=args.variant)
+    light = get_light(args.light or scene.default_light)
+    scene = scene.with_views(args.views or min(profile.views, len(scene.trajectory)))
+    width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
+    if args.spp is not None and args.spp < 1:
+        raise PrtbenchError(f"--spp {args.spp}; accepted: a positive integer")
+    if args.bounces < 0:
+        raise PrtbenchError(f"--bounces {args.bounces}; accepted: 0 or more")
+    refs = render_references(scene, light, scene.trajectory.views, width=width, height=height,
+                             spp=args.spp or profile.reference_spp, bounces=args.bounces)
+    for i, ref in enumerate(refs):
+        print(f"view {i}: {ref.path} (spp {ref.spp}, variant {ref.variant}, "
+              f"noise rmse (display) {ref.noise_rmse_display:.5f}, {ref.seconds:.1f} s)")
+    return 0
+
+
+def _results(args: argparse.Namespace) -> int:
+    from .results import ResultsStore, format_rows
+
+    rows = ResultsStore(args.results).query(method=args.method, scene=args.scene,
+                                            profile=args.profile)
+    print(format_rows(rows) if rows else "no results")
+    return 0
+
+
+def _table(args: argparse.Namespace) -> int:
+    from .reproduction import TABLES, run_table
+
+    reproduction = TABLES.get(args.name)
+    paths = run_table(reproduction, profile=args.profile,
+                      results_path=Path(args.results) if args.results else None,
+                      reports_dir=Path(args.reports))
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def _regress(args: argparse.Namespace) -> int:
+    from .regress import regress
+
+    ok = regress(update=args.update, methods=args.method or None,
+                 baseline_path=Path(args.baselines) if args.baselines else None)
+    return 0 if ok else 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="prtbench", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("list", help="list methods, scenes, lights, tables, profiles or assets")
+    p.add_argument("kind", choices=LIST_KINDS)
+    p.set_defaults(func=_list)
+
+    p = sub.add_parser("assets", help="fetch pinned mesh/HDRI packages into the cache")
+    p.add_argument("action", choices=("fetch", "list"))
+    p.add_argument("name", nargs="?", default=None, help="asset name (default: all)")
+    p.add_argument("--force", action="store_true", help="fetch again even if present")
+    p.set_defaults(func=_assets)
+
+    p = sub.add_parser("run", help="precompute, render, compare with the reference, store")
+    p.add_argument("--method", required=True)
+    p.add_argument("--scene", required=True)
+    p.add_argument("--variant", default="diffuse", help="material variant: diffuse or glossy")
+    p.add_argument("--light", default=None, help="light name or .exr/.hdr path (default: the scene's)")
+    p.add_argument("--views", type=int, default=None, help="number of trajectory views")
+    p.add_argument("--res", default=None, help="WxH (default: the profile's)")
+    p.add_argument("--profile", default="quick", help="smoke, quick or paper")
+    p.add_argument("--reference", default="path", help="path or method:<name>")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="method config override")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
+    p.add_argument("--out", default="out", help="directory for EXR/PNG/FLIP images and summary.json")
+    p.add_argument("--json", default=None, help="also write the JSON summary here")
+    p.add_argument("--results", default=None, help="results database (default results/prtbench.sqlite)")
+    p.add_argument("--no-store", action="store_true", help="do not append rows to the results store")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=_run)
+
+    p = sub.add_parser("reference", help="render (and cache) Mitsuba path-traced references")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--variant", default="diffuse")
+    p.add_argument("--light", default=None)
+    p.add_argument("--views", type=int, default=None)
+    p.add_argument("--spp", type=int, default=None)
+    p.add_argument("--bounces", type=int, default=0)
+    p.add_argument("--res", default=None)
+    p.add_argument("--profile", default="quick")
+    p.set_defaults(func=_reference)
+
+    p = sub.add_parser("results", help="print stored result rows")
+    p.add_argument("--method")
+    p.add_argument("--scene")
+    p.add_argument("--profile")
+    p.add_argument("--results", default=None)
+    p.set_defaults(func=_results)
+
+    p = sub.add_parser("table", help="regenerate a paper table from our measurements")
+    p.add_argument("name")
+    p.add_argument("--profile", default="quick")
+    p.add_argument("--results", default=None)
+    p.add_argument("--reports", default="reports")
+    p.set_defaults(func=_table)
+
+    p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")
+    p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")
+    p.add_argument("--method", action="append", help="only these methods")
+    p.add_argument("--baselines", default=None, help="baseline file (default tests/baselines/metrics.json)")
+    p.set_defaults(func=_regress)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except PrtbenchError as exc:
+        print(f"prtbench: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("prtbench: interrupted (caches and results hold only completed work)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

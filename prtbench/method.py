@@ -1,0 +1,178 @@
+"""The contract every PRT method fulfils (DESIGN.md §2) and the method registry.
+
+A method is a :class:`Method` subclass registered with ``@register_method("name")`` and
+declared lazily in ``pyproject.toml`` (entry-point group ``prtbench.methods``). It has
+
+* a ``Config`` dataclass of documented knobs (:func:`prtbench.config.knob`), built strictly;
+* :meth:`Method.precompute`: everything light-independent, returned as an :class:`Artifact`
+  and cached by a content hash of (scene, config, ``precompute_version``) through
+  :func:`load_or_precompute`;
+* :meth:`Method.renderer`: a :class:`Renderer` on a GL (or torch) context with
+  ``render(view, light)``, ``frame_time(view, light)`` and ``memory_bytes()``.
+
+Every method approximates the one radiance model of DESIGN.md §4, so with enough bands and
+samples each converges to the same path-traced reference.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from . import config as config_mod
+from .cache import cache_root, content_key, load_arrays, save_arrays
+from .registry import Registry
+
+if TYPE_CHECKING:
+    from .lights import EnvironmentLight
+    from .scene import Scene, View
+
+
+@dataclass
+class Artifact:
+    """The light-independent result of a precompute.
+
+    Attributes
+    ----------
+    method : str
+    arrays : dict of str to ndarray
+        Everything the renderer needs (transfer vectors, textures, weights, ...).
+    meta : dict
+        JSON-able facts (counts, timings of sub-steps, versions).
+    precompute_s : float
+        Wall time of the precompute that produced it (0 is never reported for a cache hit:
+        the original time is stored with the artifact).
+    cache_hit : bool
+    """
+
+    method: str
+    arrays: dict[str, np.ndarray]
+    meta: dict[str, Any] = field(default_factory=dict)
+    precompute_s: float = 0.0
+    cache_hit: bool = False
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in self.arrays.values()))
+
+
+@dataclass(frozen=True)
+class FrameTimes:
+    """Frame times in milliseconds (median / p95 / mean of the timed frames).
+
+    ``source`` is ``"timer-query"`` or ``"wall+finish"`` (software rasterisers), see
+    :class:`prtbench.gl.FrameTimes`.
+    """
+
+    median_ms: float
+    p95_ms: float
+    mean_ms: float
+    frames: int
+    renderer: str
+    source: str = "timer-query"
+
+
+class Renderer(ABC):
+    """Renders one method's artifact; owns its GL/torch resources."""
+
+    #: GL_RENDERER (+ version) or torch device string, recorded with every timing.
+    renderer_string: str = "unknown"
+
+    @abstractmethod
+    def render(self, view: "View", light: "EnvironmentLight") -> np.ndarray:
+        """Linear HDR image, float32 (H, W, 3), row 0 at the top; background 0."""
+
+    @abstractmethod
+    def frame_time(self, view: "View", light: "EnvironmentLight", *, warmup: int,
+                   frames: int) -> FrameTimes:
+        """GPU time of one frame (timer queries; never the first frame or readback)."""
+
+    @abstractmethod
+    def memory_bytes(self) -> int:
+        """Bytes the method must keep resident to render (transfer data, textures, weights)."""
+
+    def release(self) -> None:
+        """Free GPU resources."""
+
+
+class Method(ABC):
+    """Base class of a PRT method plug-in."""
+
+    name: ClassVar[str]
+    Config: ClassVar[type]
+    #: Bump when the precompute's output changes for the same inputs (invalidates caches).
+    precompute_version: ClassVar[str] = "1"
+    #: Per-profile config overrides, e.g. ``{"smoke": {"rays_per_point": 64}}``.
+    profile_overrides: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
+    #: One line for ``prtbench list methods``.
+    summary: ClassVar[str] = ""
+
+    @classmethod
+    def make_config(cls, overrides: Mapping[str, Any] | None = None, *, profile: str = "quick"):
+        """Strict config: defaults, then the profile's overrides, then the user's."""
+        values = dict(cls.profile_overrides.get(profile, {}))
+        values.update(overrides or {})
+        return config_mod.from_dict(cls.Config, values)
+
+    @classmethod
+    def validate(cls, scene: "Scene", config: Any) -> None:
+        """Raise a PrtbenchError if this method cannot handle ``scene`` with ``config``."""
+
+    @classmethod
+    @abstractmethod
+    def precompute(cls, scene: "Scene", config: Any, *, progress: bool = True) -> Artifact:
+        """Compute everything light-independent."""
+
+    @classmethod
+    @abstractmethod
+    def renderer(cls, scene: "Scene", artifact: Artifact, config: Any, *, width: int,
+                 height: int) -> Renderer:
+        """A renderer for ``artifact`` at ``width`` × ``height``."""
+
+
+#: name -> Method subclass, lazily imported.
+METHODS: Registry[type[Method]] = Registry("method", entry_point_group="prtbench.methods")
+
+
+def register_method(name: str):
+    """Class decorator registering a :class:`Method` under ``name``."""
+
+    def decorator(cls: type[Method]) -> type[Method]:
+        cls.name = name
+        return METHODS.register(name)(cls)
+
+    return decorator
+
+
+def artifact_key(method_cls: type[Method], scene: "Scene", config: Any) -> str:
+    """Content hash of what a precompute depends on."""
+    return content_key(method_cls.name, method_cls.precompute_version, scene.content_hash(),
+                       config_mod.to_dict(config))
+
+
+def load_or_precompute(method_cls: type[Method], scene: "Scene", config: Any, *,
+                       progress: bool = True, use_cache: bool = True) -> Artifact:
+    """The cached artifact for (method, scene, config), computing it if absent.
+
+    The artifact's arrays and meta are stored together in one checksummed ``.npz`` written
+    atomically, so an interrupted precompute leaves nothing usable behind.
+    """
+    path = cache_root() / "artifacts" / method_cls.name / f"{artifact_key(method_cls, scene, config)}.npz"
+    if use_cache:
+        stored = load_arrays(path)
+        if stored is not None and "__meta__" in stored:
+            meta = json.loads(str(stored.pop("__meta__")))
+            return Artifact(method_cls.name, stored, meta["meta"], meta["precompute_s"], True)
+    start = time.perf_counter()
+    artifact = method_cls.precompute(scene, config, progress=progress)
+    artifact.precompute_s = time.perf_counter() - start
+    if use_cache:
+        meta = json.dumps({"meta": artifact.meta, "precompute_s": artifact.precompute_s})
+        save_arrays(path, {**artifact.arrays, "__meta__": np.array(meta)})
+    return artifact

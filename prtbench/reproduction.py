@@ -1,0 +1,124 @@
+"""Reproductions of paper tables and figures (DESIGN.md §11).
+
+A reproduction declares the paper and table, its sweep (methods × configs × scenes × lights ×
+views) as :class:`Cell` objects, the paper's own numbers (shown only in "paper" columns), the
+scene substitutions it had to make, and a formatter. :func:`run_table` runs the sweep through
+the ordinary runner, which appends rows to the results store, then builds the report **from
+the store** (filtered to this sweep's run ids) and writes ``reports/table-<name>.md`` and
+``.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .cache import atomic_path
+from .registry import Registry
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One measured configuration of a sweep.
+
+    ``label`` holds the row/column keys the formatter groups by (e.g. ``{"ground": "2"}``).
+    """
+
+    method: str
+    scene: str
+    label: Mapping[str, Any]
+    variant: str = "diffuse"
+    light: str | None = None
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    scene_params: Mapping[str, Any] = field(default_factory=dict)
+    reference: str = "path"
+    views: int | None = None
+
+
+class Reproduction:
+    """Base class: subclasses set the attributes and implement :meth:`cells` and :meth:`format`."""
+
+    name: str = ""
+    paper: str = ""
+    title: str = ""
+    substitutions: Sequence[str] = ()
+    notes: Sequence[str] = ()
+
+    def cells(self, profile: str) -> list[Cell]:
+        raise NotImplementedError
+
+    def format(self, frame, *, profile: str) -> tuple[list[str], list[list[Any]]]:
+        """(header, rows) of the table from the results DataFrame of this sweep."""
+        raise NotImplementedError
+
+    def markdown(self, header: Sequence[str], rows: Sequence[Sequence[Any]], *, profile: str,
+                 frame) -> str:
+        renderers = sorted(set(frame["renderer"])) if len(frame) else []
+        lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
+                 f"Profile: `{profile}`. GL renderer: {', '.join(renderers) or 'n/a'}. "
+                 f"Git: {', '.join(sorted(set(frame['git_sha']))) if len(frame) else 'n/a'}.", ""]
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|" + "|".join("---" for _ in header) + "|")
+        for row in rows:
+            lines.append("| " + " | ".join(_fmt(v) for v in row) + " |")
+        if self.substitutions:
+            lines += ["", "## Scene substitutions", ""] + [f"- {s}" for s in self.substitutions]
+        if self.notes:
+            lines += ["", "## Notes", ""] + [f"- {n}" for n in self.notes]
+        return "\n".join(lines) + "\n"
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        if value != value:  # NaN
+            return "—"
+        return f"{value:.4g}" if abs(value) < 1e4 else f"{value:.3e}"
+    return str(value)
+
+
+#: name -> Reproduction instance, lazily imported from ``reproductions``.
+TABLES: Registry[Reproduction] = Registry("table", entry_point_group="prtbench.tables")
+
+
+def run_table(reproduction: Reproduction, *, profile: str = "quick",
+              results_path: Path | None = None, reports_dir: Path = Path("reports"),
+              progress: bool = True) -> list[Path]:
+    """Run the sweep, then write the report from the stored rows; returns the written paths."""
+    from .results import load
+    from .runner import RunRequest, execute, prepare
+
+    cells = reproduction.cells(profile)
+    # Validate every cell before running any, so a bad cell writes nothing.
+    prepared = [prepare(RunRequest(
+        method=c.method, scene=c.scene, variant=c.variant, light=c.light, views=c.views,
+        profile=profile, reference=c.reference, overrides=dict(c.overrides),
+        scene_params=dict(c.scene_params), out_dir=None, results_path=results_path,
+        write_images=False)) for c in cells]
+    run_ids: dict[str, Cell] = {}
+    for i, (cell, job) in enumerate(zip(cells, prepared)):
+        print(f"[table {reproduction.name}] cell {i + 1}/{len(cells)}: {dict(cell.label)}",
+              file=sys.stderr, flush=True)
+        summary = execute(job, progress=progress)
+        run_ids[summary.run_id] = cell
+    frame = load(results_path)
+    frame = frame[frame["run_id"].isin(list(run_ids))].copy()
+    for key in sorted({k for c in cells for k in c.label}):
+        frame[f"label_{key}"] = [dict(run_ids[r].label).get(key) for r in frame["run_id"]]
+    header, rows = reproduction.format(frame, profile=profile)
+    reports_dir.mkdir(parents=True, exist_ok=True)
+    md_path = reports_dir / f"table-{reproduction.name}.md"
+    csv_path = reports_dir / f"table-{reproduction.name}.csv"
+    with atomic_path(md_path) as tmp:
+        tmp.write_text(reproduction.markdown(header, rows, profile=profile, frame=frame))
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(header)
+    writer.writerows(rows)
+    with atomic_path(csv_path) as tmp:
+        tmp.write_text(buf.getvalue())
+    return [md_path, csv_path]

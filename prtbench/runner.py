@@ -1,0 +1,328 @@
+"""Run one job: precompute (cached) → render each view → reference (cached) → metrics →
+timings → memory → files and result rows.
+
+Everything a user can get wrong (method, scene, variant, light, profile, reference kind,
+``--set`` keys and values, resolution, view count) is validated by :func:`prepare` before any
+cache entry, output file or result row is written.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import uuid
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import config as config_mod
+from .errors import InvalidInputError, UnknownNameError
+from .method import METHODS, Method, load_or_precompute
+from .profiles import Profile, get_profile
+from .scene import SCENES, VARIANTS, Scene, get_scene
+
+
+@dataclass
+class RunRequest:
+    """What ``prtbench run`` was asked to do (CLI arguments, already parsed)."""
+
+    method: str
+    scene: str
+    variant: str = "diffuse"
+    light: str | None = None
+    views: int | None = None
+    resolution: tuple[int, int] | None = None
+    profile: str = "quick"
+    reference: str = "path"
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    scene_params: Mapping[str, Any] = field(default_factory=dict)
+    out_dir: Path | None = Path("out")
+    json_path: Path | None = None
+    results_path: Path | None = None
+    store_results: bool = True
+    write_images: bool = True
+
+
+@dataclass
+class PreparedRun:
+    """A validated request with its resolved objects."""
+
+    request: RunRequest
+    method_cls: type[Method]
+    config: Any
+    profile: Profile
+    scene: Scene
+    light: Any
+    width: int
+    height: int
+    reference_method: tuple[type[Method], Any] | None
+
+
+@dataclass
+class ViewResult:
+    view: int
+    metrics: dict[str, float]
+    frame_ms: float
+    frame_ms_p95: float
+    files: dict[str, str]
+    timing_source: str = "timer-query"
+
+
+@dataclass
+class RunSummary:
+    method: str
+    config: dict[str, Any]
+    scene: str
+    variant: str
+    light: str
+    profile: str
+    width: int
+    height: int
+    reference: str
+    reference_spp: int | None
+    reference_noise_display: float | None
+    renderer: str
+    memory_bytes: int
+    precompute_s: float
+    precompute_cached: bool
+    run_id: str
+    views: list[ViewResult]
+
+    def mean_metrics(self) -> dict[str, float]:
+        keys = self.views[0].metrics.keys() if self.views else []
+        return {k: float(np.mean([v.metrics[k] for v in self.views])) for k in keys}
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["mean_metrics"] = self.mean_metrics()
+        out["mean_frame_ms"] = float(np.mean([v.frame_ms for v in self.views])) if self.views else None
+        return out
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """``"WxH"`` → (W, H) with both in 8..8192."""
+    try:
+        w, h = (int(p) for p in text.lower().split("x"))
+    except ValueError:
+        raise InvalidInputError(f"--res '{text}'; accepted: WxH, e.g. 320x240") from None
+    if not (8 <= w <= 8192 and 8 <= h <= 8192):
+        raise InvalidInputError(f"--res '{text}'; accepted: width and height in 8..8192")
+    return w, h
+
+
+def _reference_method(kind: str, profile: str) -> tuple[type[Method], Any] | None:
+    if kind == "path":
+        return None
+    prefix, _, name = kind.partition(":")
+    if prefix != "method" or not name:
+        raise InvalidInputError(f"--reference '{kind}'; accepted: path, method:<name> "
+                                f"(methods: {', '.join(METHODS.names())})")
+    cls = METHODS.get(name)
+    return cls, cls.make_config(profile=profile)
+
+
+def prepare(request: RunRequest) -> PreparedRun:
+    """Validate and resolve a request; writes nothing."""
+    from .lights import get_light
+
+    profile = get_profile(request.profile)
+    SCENES.check(request.scene)
+    method_cls = METHODS.get(request.method)
+    config = method_cls.make_config(request.overrides, profile=request.profile)
+    if request.variant not in VARIANTS:
+        raise UnknownNameError("variant", request.variant, VARIANTS)
+    reference_method = _reference_method(request.reference, request.profile)
+    scene = get_scene(request.scene, variant=request.variant, **dict(request.scene_params))
+    light = get_light(request.light or scene.default_light)
+    n_views = request.views if request.views is not None else min(profile.views, len(scene.trajectory))
+    scene = scene.with_views(n_views)
+    width, height = request.resolution or (profile.width, profile.height)
+    method_cls.validate(scene, config)
+    if reference_method is not None:
+        reference_method[0].validate(scene, reference_method[1])
+    return PreparedRun(request, method_cls, config, profile, scene, light, width, height,
+                       reference_method)
+
+
+def geometry_mask(scene: Scene, view, width: int, height: int) -> np.ndarray:
+    """(H, W) bool: pixels whose centre ray hits geometry (the masked metrics' support)."""
+    from .raytrace import Tracer
+
+    tracer = _tracer_for(scene)
+    origins, dirs = view.primary_rays(width, height)
+    hits = tracer.first_hit(origins.reshape(-1, 3), dirs.reshape(-1, 3))
+    return (hits.face >= 0).reshape(height, width)
+
+
+_TRACERS: dict[str, Any] = {}
+
+
+def _tracer_for(scene: Scene):
+    from .raytrace import Tracer
+
+    key = scene.content_hash()
+    if key not in _TRACERS:
+        _TRACERS.clear()  # one scene at a time keeps memory bounded on big scenes
+        _TRACERS[key] = Tracer.from_scene(scene)
+    return _TRACERS[key]
+
+
+def _log(echo: bool, message: str) -> None:
+    if echo:
+        print(message, file=sys.stderr, flush=True)
+
+
+def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) -> RunSummary:
+    """Run a prepared job; returns its summary (and writes files / rows as requested)."""
+    from . import imageio, metrics
+    from .reference import render_reference
+
+    req, scene, light = prepared.request, prepared.scene, prepared.light
+    method_cls, config = prepared.method_cls, prepared.config
+    width, height = prepared.width, prepared.height
+    _log(echo, f"[prtbench] profile={prepared.profile.name} method={method_cls.name} "
+               f"scene={scene.name}/{scene.variant} ({scene.n_triangles} tris) light={light.name} "
+               f"views={len(scene.trajectory)} res={width}x{height} reference={req.reference}")
+    artifact = load_or_precompute(method_cls, scene, config, progress=progress)
+    _log(echo, f"[prtbench] precompute: {artifact.precompute_s:.1f} s"
+               f"{' (cached)' if artifact.cache_hit else ''}, {artifact.nbytes / 2**20:.2f} MiB")
+    renderer = method_cls.renderer(scene, artifact, config, width=width, height=height)
+    ref_renderer = None
+    bounces = int(getattr(config, "bounces", 0))
+    if prepared.reference_method is not None:
+        ref_cls, ref_config = prepared.reference_method
+        ref_artifact = load_or_precompute(ref_cls, scene, ref_config, progress=progress)
+        ref_renderer = ref_cls.renderer(scene, ref_artifact, ref_config, width=width, height=height)
+    run_id = uuid.uuid4().hex[:12]
+    out_dir = None
+    if req.write_images and req.out_dir is not None:
+        out_dir = Path(req.out_dir) / method_cls.name / f"{scene.name}-{scene.variant}" / light.name
+    view_results: list[ViewResult] = []
+    ref_spp, ref_noise = None, None
+    try:
+        for index, view in enumerate(scene.trajectory.views):
+            image = renderer.render(view, light)
+            if ref_renderer is None:
+                ref = render_reference(scene, light, view, width=width, height=height,
+                                       spp=prepared.profile.reference_spp, bounces=bounces,
+                                       progress=progress)
+                ref_image, ref_spp = ref.image, ref.spp
+                ref_noise = max(ref_noise or 0.0, float(ref.noise_rmse_display))
+            else:
+                ref_image = ref_renderer.render(view, light)
+            mask = geometry_mask(scene, view, width, height)
+            test_d = imageio.display(image, exposure=scene.exposure)
+            ref_d = imageio.display(ref_image, exposure=scene.exposure)
+            values = metrics.compute_metrics(test_d, ref_d, mask=mask)
+            times = renderer.frame_time(view, light, warmup=prepared.profile.timing_warmup,
+                                        frames=prepared.profile.timing_frames)
+            files: dict[str, str] = {}
+            if out_dir is not None:
+                stem = out_dir / f"view{index:02d}"
+                imageio.write_exr(f"{stem}.exr", image)
+                imageio.write_png(f"{stem}.png", test_d)
+                imageio.write_png(f"{stem}-reference.png", ref_d)
+                imageio.write_png(f"{stem}-flip.png", metrics.error_map(test_d, ref_d))
+                files = {k: f"{stem}{suffix}" for k, suffix in
+                         (("exr", ".exr"), ("png", ".png"), ("reference", "-reference.png"),
+                          ("flip", "-flip.png"))}
+            view_results.append(ViewResult(index, values, times.median_ms, times.p95_ms, files,
+                                           times.source))
+            _log(echo, f"[prtbench] view {index}: psnr_masked={values.get('psnr_masked', float('nan')):.2f} dB "
+                       f"frame={times.median_ms:.3f} ms")
+        memory = renderer.memory_bytes()
+    finally:
+        renderer.release()
+        if ref_renderer is not None:
+            ref_renderer.release()
+    summary = RunSummary(
+        method=method_cls.name, config=config_mod.to_dict(config), scene=scene.name,
+        variant=scene.variant, light=light.name, profile=prepared.profile.name, width=width,
+        height=height, reference=req.reference, reference_spp=ref_spp,
+        reference_noise_display=ref_noise, renderer=renderer.renderer_string,
+        memory_bytes=memory, precompute_s=artifact.precompute_s,
+        precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results)
+    if req.store_results:
+        _store(summary, scene, results_path=req.results_path)
+    if out_dir is not None or req.json_path is not None:
+        json_path = Path(req.json_path) if req.json_path else out_dir / "summary.json"
+        from .cache import atomic_path
+
+        with atomic_path(json_path) as tmp:
+            tmp.write_text(json.dumps(summary.to_json(), indent=2, default=_json_default))
+    return summary
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    return str(obj)
+
+
+def device_description() -> str:
+    """The measuring machine: CPU model and core count (the GPU is in the renderer string)."""
+    import os
+    import platform
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            cpu = next((l.split(":", 1)[1].strip() for l in fh if l.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores"
+
+
+def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None) -> None:
+    from .results import ResultRow, ResultsStore, git_sha
+
+    sha = git_sha()
+    stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    rows = []
+    for v in summary.views:
+        view = scene.trajectory.views[v.view]
+        rows.append(ResultRow(
+            method=summary.method, config=json.dumps(summary.config, sort_keys=True),
+            scene=summary.scene, scene_variant=summary.variant, light=summary.light,
+            view=v.view, view_json=json.dumps(asdict(view)), width=summary.width,
+            height=summary.height, reference_kind=summary.reference,
+            metrics=json.dumps(v.metrics, default=_json_default), frame_ms=v.frame_ms,
+            frame_ms_p95=v.frame_ms_p95, memory_bytes=summary.memory_bytes,
+            precompute_s=summary.precompute_s, renderer=summary.renderer,
+            device=device_description(), git_sha=sha, profile=summary.profile,
+            run_id=summary.run_id, timestamp=stamp, reference_spp=summary.reference_spp,
+            reference_noise=summary.reference_noise_display,
+            scene_triangles=scene.n_triangles, scene_params=dict(scene.params),
+            timing_source=v.timing_source))
+    ResultsStore(results_path).append(rows)
+
+
+def run(request: RunRequest, *, progress: bool = True, echo: bool = True) -> RunSummary:
+    """Validate, then execute, a request."""
+    return execute(prepare(request), progress=progress, echo=echo)
+
+
+def format_summary(summary: RunSummary, *, metric_names: Sequence[str] = (
+        "psnr_masked", "ssim_masked", "flip_masked", "psnr", "mae")) -> str:
+    """A plain text table: one row per view and a mean row."""
+    header = ["view", *metric_names, "frame ms"]
+    rows = [[str(v.view), *(f"{v.metrics.get(m, float('nan')):.4f}" for m in metric_names),
+             f"{v.frame_ms:.3f}"] for v in summary.views]
+    mean = summary.mean_metrics()
+    rows.append(["mean", *(f"{mean.get(m, float('nan')):.4f}" for m in metric_names),
+                 f"{np.mean([v.frame_ms for v in summary.views]):.3f}"])
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in [header, *rows]]
+    facts = (f"method={summary.method} scene={summary.scene}/{summary.variant} light={summary.light} "
+             f"profile={summary.profile} {summary.width}x{summary.height} reference={summary.reference}"
+             f"{f' (spp {summary.reference_spp}, noise {summary.reference_noise_display:.4f})' if summary.reference_spp else ''}\n"
+             f"timing={summary.views[0].timing_source if summary.views else '-'} "
+             f"memory={summary.memory_bytes / 2**20:.3f} MiB precompute={summary.precompute_s:.1f} s"
+             f"{' (cached)' if summary.precompute_cached else ''} renderer={summary.renderer}")
+    return facts + "\n" + "\n".join(lines)
