@@ -1,0 +1,96 @@
+"""Transfer precompute throughput against raw embreex occlusion on the same rays.
+
+Target (issue): ``compute_transfer`` reaches >= 80 % of the rays/s of a bare embreex
+``OCCLUDED`` query over exactly the rays it traces. Not collected by the default test run
+(``testpaths = ["tests"]``); run with
+
+    .venv/bin/pytest benchmarks/test_transfer_throughput.py --benchmark-enable -s
+
+It prints the ratio and records it in the benchmark's ``extra_info``; it asserts nothing about
+timing (machines differ, and this one is shared).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from prtbench.errors import PrtbenchError
+from prtbench.raytrace import Tracer, offset_origins
+from prtbench.scene import get_scene
+from prtbench.transfer import RayPattern, compute_transfer
+
+ROUNDS = 5
+
+
+def _scene():
+    try:
+        return get_scene("plants")
+    except (PrtbenchError, ImportError):
+        return get_scene("sphere-over-plane")
+
+
+def _timed(fn) -> tuple[float, float]:
+    """Wall and CPU (all threads) seconds of one call."""
+    w, c = time.perf_counter(), time.process_time()
+    fn()
+    return time.perf_counter() - w, time.process_time() - c
+
+
+def _interleaved(first, second, rounds: int = ROUNDS) -> np.ndarray:
+    """(rounds, 2, 2) [round, which, (wall, cpu)]: alternating calls share load fluctuations."""
+    return np.array([[_timed(first), _timed(second)] for _ in range(rounds)])
+
+
+@pytest.mark.parametrize(("bands", "rays_per_point", "n_points"),
+                         [(4, 256, 4096), (6, 1024, 1024), (10, 256, 4096)])
+def test_transfer_vs_raw_embree_occlusion(benchmark, bands, rays_per_point, n_points):
+    scene = _scene()
+    positions, normals, _, _ = scene.merged()
+    pick = np.random.default_rng(0).choice(len(positions), size=min(n_points, len(positions)),
+                                           replace=False)
+    points = positions[pick].astype(np.float64)
+    normals = normals[pick].astype(np.float64)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    tracer = Tracer.from_scene(scene)
+    n_rays = len(points) * rays_per_point
+
+    # Exactly the rays compute_transfer traces (same seeded pattern and origin offset).
+    pattern = RayPattern(len(points), rays_per_point, 0)
+    everything = slice(0, len(points))
+    dirs = pattern.world_directions(pattern.frames(normals, everything), everything).reshape(-1, 3)
+    origins = np.repeat(offset_origins(points, normals, diagonal=tracer.diagonal)
+                        .astype(np.float32), rays_per_point, axis=0)
+
+    def raw():
+        return tracer._scene.run(origins, dirs, query="OCCLUDED")
+
+    def transfer():
+        return compute_transfer(scene, points, normals, bands=bands, rays_per_point=rays_per_point,
+                                use_cache=False, progress=False, tracer=tracer)
+
+    raw(), transfer()  # warm-up (BVH commit, imports)
+    times = _interleaved(raw, transfer)
+    raw_wall, raw_cpu = times[:, 0].min(axis=0)
+    tr_wall, tr_cpu = times[:, 1].min(axis=0)
+    per_round = times[:, 0, 0] / times[:, 1, 0]
+    info = {
+        "scene": scene.name, "triangles": scene.n_triangles, "rays": n_rays, "bands": bands,
+        "rays_per_point": rays_per_point,
+        "raw_mrays_per_s": n_rays / raw_wall / 1e6,
+        "transfer_mrays_per_s": n_rays / tr_wall / 1e6,
+        "ratio_wall": raw_wall / tr_wall,
+        "ratio_wall_median_of_rounds": float(np.median(per_round)),
+        "ratio_cpu": raw_cpu / tr_cpu,
+        "occluded_fraction": float(np.mean(raw() != -1)),
+    }
+    benchmark.extra_info.update(info)
+    print(f"\n[transfer throughput] {scene.name} ({scene.n_triangles} tris) {n_rays} rays, "
+          f"bands {bands}, M {rays_per_point}: raw embree {info['raw_mrays_per_s']:.2f} Mrays/s, "
+          f"compute_transfer {info['transfer_mrays_per_s']:.2f} Mrays/s, "
+          f"ratio {info['ratio_wall']:.2f} (best wall; median of rounds "
+          f"{info['ratio_wall_median_of_rounds']:.2f}), {info['ratio_cpu']:.2f} (CPU time); "
+          f"target >= 0.8")
+    benchmark.pedantic(transfer, rounds=3, iterations=1)
