@@ -94,6 +94,7 @@ class VertexRenderer(RasterRenderer):
         # (V, n²[, 3]) float32, vertex-major: the shader reads transfer[v * n² * C + i * C + c].
         self.transfer_buffer = self.ctx.buffer(np.ascontiguousarray(transfer, np.float32).tobytes())
         self._resident = [self.transfer_buffer]
+        self._resident_bytes = int(self.transfer_buffer.size)
 
     def _bind(self, view, light) -> None:
         self.transfer_buffer.bind_to_storage_buffer(0)
@@ -101,4 +102,4 @@ class VertexRenderer(RasterRenderer):
         self.program["light_sh"].write(np.ascontiguousarray(coeffs).tobytes())
 
     def memory_bytes(self) -> int:
-        return int(self.transfer_buffer.size)
+        return self._resident_bytes

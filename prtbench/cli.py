@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .errors import PrtbenchError
 
-LIST_KINDS = ("methods", "scenes", "lights", "tables", "profiles", "assets")
+LIST_KINDS = ("methods", "scenes", "lights", "tables", "figures", "profiles", "assets")
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -34,6 +34,10 @@ def _list(args: argparse.Namespace) -> int:
         from .reproduction import TABLES
 
         names = TABLES.names()
+    elif args.kind == "figures":
+        from .reproduction import FIGURES
+
+        names = FIGURES.names()
     elif args.kind == "profiles":
         from .profiles import PROFILES
 
@@ -129,6 +133,16 @@ def _table(args: argparse.Namespace) -> int:
     return 0
 
 
+def _figure(args: argparse.Namespace) -> int:
+    from .reproduction import FIGURES
+
+    figure = FIGURES.get(args.name)
+    for p in figure.make(profile=args.profile, reports_dir=Path(args.reports),
+                         results_path=Path(args.results) if args.results else None):
+        print(f"wrote {p}")
+    return 0
+
+
 def _regress(args: argparse.Namespace) -> int:
     from .regress import regress
 
@@ -193,6 +207,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
     p.set_defaults(func=_table)
+
+    p = sub.add_parser("figure", help="regenerate a paper figure from our renders")
+    p.add_argument("name")
+    p.add_argument("--profile", default="quick")
+    p.add_argument("--results", default=None)
+    p.add_argument("--reports", default="reports")
+    p.set_defaults(func=_figure)
 
     p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")
     p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")

@@ -122,3 +122,21 @@ def run_table(reproduction: Reproduction, *, profile: str = "quick",
     with atomic_path(csv_path) as tmp:
         tmp.write_text(buf.getvalue())
     return [md_path, csv_path]
+
+
+class Figure:
+    """A paper figure regenerated from our own renders (PNG panels with labels)."""
+
+    name: str = ""
+    paper: str = ""
+    title: str = ""
+    substitutions: Sequence[str] = ()
+
+    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
+             progress: bool = True) -> list[Path]:
+        """Render and write the figure; returns the written paths (PNG and a caption .md)."""
+        raise NotImplementedError
+
+
+#: name -> Figure instance, lazily imported from ``reproductions``.
+FIGURES: Registry[Figure] = Registry("figure", entry_point_group="prtbench.figures")

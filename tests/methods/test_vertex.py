@@ -58,7 +58,6 @@ def _masked_psnr(image, scene, light, width=96, height=72):
     return values["psnr_masked"]
 
 
-@pytest.mark.slow
 def test_psnr_rises_with_sh_bands_and_tessellation():
     scene = get_scene("sphere-over-plane", plane_subdivisions=48).with_views(1)
     psnr = {b: _masked_psnr(_render(scene, sh_bands=b, rays_per_point=1024, width=96, height=72)[0],
