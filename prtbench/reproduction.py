@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -58,10 +59,22 @@ class Reproduction:
 
     def markdown(self, header: Sequence[str], rows: Sequence[Sequence[Any]], *, profile: str,
                  frame) -> str:
-        renderers = sorted(set(frame["renderer"])) if len(frame) else []
+        def distinct(column: str) -> str:
+            values = sorted({str(v) for v in frame[column] if v not in (None, "")}) if len(frame) else []
+            return ", ".join(values) or "n/a"
+
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
-                 f"Profile: `{profile}`. GL renderer: {', '.join(renderers) or 'n/a'}. "
-                 f"Git: {', '.join(sorted(set(frame['git_sha']))) if len(frame) else 'n/a'}.", ""]
+                 f"Profile: `{profile}`. GL renderer: {distinct('renderer')}. "
+                 f"Timing: {distinct('timing_source')} (`timer-query` = GL timer queries; "
+                 f"`wall+finish` = host clock around draw + glFinish, used on software "
+                 f"rasterisers). Machine: {distinct('device')}. Git: {distinct('git_sha')}.", ""]
+        path_rows = frame[frame["reference_kind"] == "path"] if len(frame) else frame
+        if len(path_rows):
+            noise = float(path_rows["reference_noise"].max())
+            ceiling = float("inf") if noise <= 0 else -20 * math.log10(noise)
+            lines += [f"Path reference: Mitsuba 3, {distinct('reference_spp')} spp; its own display "
+                      f"noise RMSE is at most {noise:.4f}, so PSNRs above ~{ceiling:.1f} dB are not "
+                      f"resolved by it.", ""]
         lines.append("| " + " | ".join(header) + " |")
         lines.append("|" + "|".join("---" for _ in header) + "|")
         for row in rows:
