@@ -298,6 +298,10 @@ class Scene:
         Builder parameters (for cache keys and reports).
     substitution : str
         What this scene stands in for when the paper's assets are not public ("" if none).
+    sdf : object or None
+        For continuous (SDF) scenes: the signed distance function the scene is defined by
+        (see :mod:`prtbench.sdf`); ``objects`` then hold its fine marching-cubes mesh, which
+        the reference, masks and mesh-based methods use.
     """
 
     name: str
@@ -308,6 +312,7 @@ class Scene:
     exposure: float = 1.0
     params: dict[str, Any] = field(default_factory=dict)
     substitution: str = ""
+    sdf: Any = None
 
     @property
     def n_triangles(self) -> int:
@@ -347,7 +352,7 @@ class Scene:
 
     def content_hash(self) -> str:
         """SHA-256 of geometry, normals, UVs and materials: the scene part of cache keys."""
-        parts = [self.name, self.variant]
+        parts = [self.name, self.variant, self.sdf.spec() if self.sdf is not None else None]
         for o in self.objects:
             parts.append([o.name, o.mesh.positions, o.mesh.faces, o.mesh.normals,
                           o.mesh.uvs if o.mesh.uvs is not None else None, o.material.spec()])
