@@ -1,0 +1,54 @@
+#version 430
+// Glossy vertex PRT (vertex-tp, vertex-tpfl, sloan-matrix): per vertex, the transferred
+// incident radiance H (SH projection of L·V·max(n·ω, 0)), then the Phong shading of
+// prt_shading.glsl towards the eye. The fragment stage (vertex_prt.frag) interpolates it.
+//
+// Defines: SH_BANDS (1..8), GLOSSY_MODE: 0 = triple product T ⊗ L over the Γ list (binding 1),
+// 1 = TPFL H_k = Σ_i T_i M_ik with the per-light matrix (binding 2), 2 = Sloan's transfer
+// matrix, H_k = Σ_i M_ki L_i.
+// Binding 0: per-vertex data, vertex-major float32: T (V, n²) for modes 0/1, M (V, n², n²) for 2.
+#include "prt_shading.glsl"
+
+layout(std430, binding = 0) readonly buffer VertexTransfer { float vertex_transfer[]; };
+
+uniform mat4 clip_from_world;
+uniform vec3 eye;
+uniform vec3 light_sh[SH_COEFFS];
+
+in vec3 in_position;
+in vec3 normal;
+in vec3 kd;
+in vec3 ks;
+in float shininess;
+
+out vec3 radiance;
+
+void main() {
+    vec3 H[SH_COEFFS];
+#if GLOSSY_MODE == 2
+    int base = gl_VertexID * SH_COEFFS * SH_COEFFS;
+    for (int k = 0; k < SH_COEFFS; ++k) {
+        vec3 sum = vec3(0.0);
+        int row = base + k * SH_COEFFS;
+        for (int i = 0; i < SH_COEFFS; ++i) {
+            sum += vertex_transfer[row + i] * light_sh[i];
+        }
+        H[k] = sum;
+    }
+#else
+    float T[SH_COEFFS];
+    int base = gl_VertexID * SH_COEFFS;
+    for (int i = 0; i < SH_COEFFS; ++i) {
+        T[i] = vertex_transfer[base + i];
+    }
+#if GLOSSY_MODE == 0
+    triple_product(T, light_sh, H);
+#else
+    tpfl_product(T, H);
+#endif
+#endif
+    vec3 n = normalize(normal);
+    vec3 wo = normalize(eye - in_position);
+    radiance = shade_transferred(H, kd, ks, shininess, n, wo);
+    gl_Position = clip_from_world * vec4(in_position, 1.0);
+}

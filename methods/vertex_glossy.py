@@ -1,0 +1,306 @@
+"""Glossy vertex PRT: triple products (PRTT §3) and Sloan 2002 transfer matrices at vertices.
+
+All three methods compute, per vertex in the vertex shader, the transferred incident radiance
+H = SH projection of L·V·max(n·ω, 0) and shade it with the one Phong BRDF (DESIGN.md §4) by
+``shade_transferred`` of ``prt_shading.glsl``: kd/π·√(4π)·H_0 plus the Phong lobe as a zonal
+convolution evaluated along the mirror direction of the eye vector. The rasteriser
+interpolates the resulting radiance (Gouraud), so glossy highlights and shadows are only as
+sharp as the mesh.
+
+* ``vertex-tp``: transfer vectors T (the diffuse ones of :func:`prtbench.transfer.compute_transfer`)
+  and the triple product H_k = Σ_ij Γ_ijk T_i L_j over the sparse Γ list (PRTT §3, "TP").
+* ``vertex-tpfl``: the same T; the light is folded into M_ik = Σ_j Γ_ijk L_j once per light on
+  the CPU, the shader does H_k = Σ_i T_i M_ik (PRTT §3, "TPFL"). Same images as ``vertex-tp``.
+* ``sloan-matrix``: per vertex Sloan's glossy transfer matrix M_ki = ∫ Y_k Y_i V max(n·ω,0) dω
+  and H = M·L. Unlike TP it does not truncate V·cos before multiplying by the light, so H is
+  the exact projection of L_n·V·cos (L_n: the light's n-band part); it costs n⁴ floats per vertex.
+
+Materials must be constant per object (kd, ks, s); normal maps need a per-texel method.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from prtbench.config import knob
+from prtbench.errors import InvalidInputError
+from prtbench.method import Artifact, Method, register_method
+
+from . import _triple
+from ._raster import RasterRenderer
+
+#: GLSL selector of how the vertex shader forms H (``GLOSSY_MODE`` in vertex_glossy.vert).
+MODE_TP, MODE_TPFL, MODE_MATRIX = 0, 1, 2
+
+_PROFILES = {
+    "smoke": {"rays_per_point": 128, "sh_bands": 4},
+    "quick": {"rays_per_point": 512},
+    "paper": {"rays_per_point": 4096},
+}
+
+
+@dataclass(frozen=True)
+class VertexGlossyConfig:
+    """Knobs of ``vertex-tp`` and ``vertex-tpfl``."""
+
+    sh_bands: int = knob(5, "SH bands n (n² transfer coefficients per vertex; Γ has O(n⁵) "
+                            "non-zeros).", low=1, high=8)
+    rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
+                               low=1, high=1 << 20)
+    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+
+
+@dataclass(frozen=True)
+class SloanMatrixConfig:
+    """Knobs of ``sloan-matrix``."""
+
+    sh_bands: int = knob(5, "SH bands n (an n² × n² transfer matrix per vertex).", low=1, high=8)
+    rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
+                               low=1, high=1 << 20)
+    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+    max_bytes: int = knob(2 << 30, "Largest transfer-matrix buffer accepted (V · n⁴ · 4 bytes).",
+                          low=1)
+
+
+def _validate_materials(method: str, scene) -> None:
+    for obj in scene.objects:
+        material = obj.material
+        if material.is_textured:
+            raise InvalidInputError(
+                f"method '{method}' takes constant kd, ks and shininess per object; '{obj.name}' "
+                f"in scene '{scene.name}' is textured; use a transfer-texture method")
+        if material.normal_map is not None:
+            raise InvalidInputError(
+                f"method '{method}' shades per vertex and cannot apply the normal map of "
+                f"'{obj.name}' in scene '{scene.name}'; use a transfer-texture method or a scene "
+                "without normal maps")
+
+
+def material_attributes(scene) -> dict[str, np.ndarray]:
+    """Per-vertex ks (V, 3) and shininess (V, 1) float32 in merged order (kd is added by
+    :class:`RasterRenderer`)."""
+    ks = np.concatenate([np.broadcast_to(np.asarray(o.material.ks, np.float32),
+                                         (o.mesh.n_vertices, 3)) for o in scene.objects])
+    shininess = np.concatenate([np.full((o.mesh.n_vertices, 1), o.material.shininess, np.float32)
+                                for o in scene.objects])
+    return {"ks": ks, "shininess": shininess}
+
+
+# --- precompute -------------------------------------------------------------------------------
+
+def _vertex_transfer(scene, config, *, progress: bool) -> np.ndarray:
+    from prtbench.transfer import compute_transfer
+
+    positions, normals, _, _ = scene.merged()
+    return np.asarray(compute_transfer(scene, positions, normals, bands=config.sh_bands,
+                                       rays_per_point=config.rays_per_point, seed=config.seed,
+                                       progress=progress), dtype=np.float32)
+
+
+#: Scratch budget (bytes) of the per-ray SH values of one chunk of the matrix precompute.
+_MATRIX_SCRATCH_BYTES = 64 << 20
+
+
+def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *, bands: int,
+                              rays_per_point: int, seed: int = 0, progress: bool = True,
+                              ) -> np.ndarray:
+    """Sloan's shadowed glossy transfer matrices M_ki(p) = ∫ Y_k Y_i V(p, ω) max(n·ω, 0) dω.
+
+    Same rays as :func:`prtbench.transfer.compute_transfer` for the same ``seed`` (its
+    :class:`~prtbench.transfer.RayPattern` and origin offset), so the first row is the transfer
+    vector over √(4π): M_0i = T_i / √(4π) up to rounding. Estimator: M ≈ π/M_r Σ_j V_j y_j y_jᵀ
+    over M_r cosine-weighted directions; M is symmetric.
+
+    Parameters
+    ----------
+    scene : Scene
+        Occluders (all objects).
+    points, normals : ndarray, shape (N, 3)
+    bands : int
+        SH bands n.
+    rays_per_point : int
+    seed : int
+    progress : bool
+
+    Returns
+    -------
+    ndarray, shape (N, n², n²), float32
+    """
+    from prtbench.raytrace import Tracer, offset_origins
+    from prtbench.sh import eval_sh
+    from prtbench.transfer import (RayPattern, _check_inputs, _chunks, _progress,
+                                   _single_threaded_blas)
+
+    p, n = _check_inputs(points, normals, bands, rays_per_point)
+    m, n2 = int(rays_per_point), bands * bands
+    tracer = Tracer.from_scene(scene)
+    pattern = RayPattern(len(p), m, seed)
+    origins_all = offset_origins(p, n, diagonal=tracer.diagonal).astype(np.float32)
+    out = np.zeros((len(p), n2, n2), dtype=np.float32)
+    chunk_points = max(1, _MATRIX_SCRATCH_BYTES // (8 * m * n2))
+    # Small products: OpenBLAS's helper threads only contend with each other (20× slower).
+    with _progress(len(p), f"transfer matrices {scene.name}", progress) as bar, \
+            _single_threaded_blas():
+        for sl in _chunks(len(p), m, chunk_points):
+            frames = pattern.frames(n[sl], sl)
+            dirs = pattern.world_directions(frames, sl)  # (c, M, 3) float32
+            origins = np.repeat(origins_all[sl], m, axis=0)
+            visible = ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
+            y = eval_sh(dirs.reshape(-1, 3).astype(np.float64), bands).reshape(-1, m, n2)
+            weighted = y * (visible[..., None] * (np.pi / m))
+            # One (n² × M)·(M × n²) BLAS product per point.
+            for row, (w, yp) in enumerate(zip(weighted, y)):
+                out[sl.start + row] = w.T @ yp
+            bar.update(sl.stop - sl.start)
+    return out
+
+
+def _format_bytes(size: int) -> str:
+    return f"{size / 2**30:.2f} GiB" if size >= 2**30 else f"{size / 2**20:.1f} MiB"
+
+
+def matrix_bytes(n_vertices: int, bands: int) -> int:
+    """Bytes of the float32 (V, n², n²) transfer-matrix buffer."""
+    return int(n_vertices) * bands**4 * 4
+
+
+# --- methods ----------------------------------------------------------------------------------
+
+class _GlossyVertexMethod(Method):
+    """Shared validation and renderer construction of the glossy vertex methods."""
+
+    profile_overrides = _PROFILES
+    regression_case = {"variant": "glossy"}
+    _mode: int
+
+    @classmethod
+    def validate(cls, scene, config) -> None:
+        _validate_materials(cls.name, scene)
+
+    @classmethod
+    def renderer(cls, scene, artifact: Artifact, config, *, width: int,
+                 height: int) -> "GlossyVertexRenderer":
+        return GlossyVertexRenderer(scene, artifact, mode=cls._mode, sh_bands=config.sh_bands,
+                                    width=width, height=height)
+
+
+class _TransferVectorMethod(_GlossyVertexMethod):
+    Config = VertexGlossyConfig
+    precompute_version = "1"
+
+    @classmethod
+    def precompute(cls, scene, config: VertexGlossyConfig, *, progress: bool = True) -> Artifact:
+        transfer = _vertex_transfer(scene, config, progress=progress)
+        return Artifact(cls.name, {"transfer": transfer},
+                        {"vertices": int(len(transfer)), "sh_bands": config.sh_bands})
+
+
+@register_method("vertex-tp")
+class VertexTP(_TransferVectorMethod):
+    """Transfer vectors at vertices, glossy shading via the SH triple product (Γ list)."""
+
+    summary = "Glossy vertex PRT: transfer vectors × light by SH triple product, per vertex"
+    _mode = MODE_TP
+
+
+@register_method("vertex-tpfl")
+class VertexTPFL(_TransferVectorMethod):
+    """Transfer vectors at vertices, glossy shading via the fixed-light triple-product matrix."""
+
+    summary = "Glossy vertex PRT: transfer vectors × per-light TPFL matrix, per vertex"
+    _mode = MODE_TPFL
+
+
+@register_method("sloan-matrix")
+class SloanMatrix(_GlossyVertexMethod):
+    """Sloan 2002 glossy transfer matrices at vertices (n² × n² per vertex), H = M·L."""
+
+    Config = SloanMatrixConfig
+    precompute_version = "1"
+    summary = "Sloan 2002 glossy transfer matrices at vertices (n⁴ floats each), per vertex"
+    _mode = MODE_MATRIX
+
+    @classmethod
+    def validate(cls, scene, config: SloanMatrixConfig) -> None:
+        super().validate(scene, config)
+        size = matrix_bytes(scene.n_vertices, config.sh_bands)
+        if size > config.max_bytes:
+            fit = max((b for b in range(1, config.sh_bands) if
+                       matrix_bytes(scene.n_vertices, b) <= config.max_bytes), default=None)
+            hint = f"use sh_bands={fit} or fewer" if fit else "use a coarser mesh"
+            raise InvalidInputError(
+                f"sloan-matrix with sh_bands={config.sh_bands} on scene '{scene.name}' needs "
+                f"{_format_bytes(size)} of transfer matrices ({scene.n_vertices} vertices × "
+                f"{config.sh_bands**4} floats), over max_bytes={_format_bytes(config.max_bytes)}; "
+                f"{hint}, or raise max_bytes")
+
+    @classmethod
+    def precompute(cls, scene, config: SloanMatrixConfig, *, progress: bool = True) -> Artifact:
+        positions, normals, _, _ = scene.merged()
+        matrices = compute_transfer_matrices(scene, positions, normals, bands=config.sh_bands,
+                                             rays_per_point=config.rays_per_point,
+                                             seed=config.seed, progress=progress)
+        return Artifact(cls.name, {"matrices": matrices},
+                        {"vertices": int(len(matrices)), "sh_bands": config.sh_bands})
+
+
+# --- renderer ---------------------------------------------------------------------------------
+
+class GlossyVertexRenderer(RasterRenderer):
+    """Per-vertex H (TP, TPFL or matrix) and Phong shading; interpolated radiance.
+
+    Parameters
+    ----------
+    scene : Scene
+    artifact : Artifact
+        ``transfer`` (V, n²) for TP/TPFL or ``matrices`` (V, n², n²) for the matrix mode.
+    mode : int
+        :data:`MODE_TP`, :data:`MODE_TPFL` or :data:`MODE_MATRIX`.
+    sh_bands : int
+    width, height : int
+    """
+
+    def __init__(self, scene, artifact: Artifact, *, mode: int, sh_bands: int, width: int,
+                 height: int):
+        key = "matrices" if mode == MODE_MATRIX else "transfer"
+        data = np.ascontiguousarray(artifact.arrays[key], dtype=np.float32)
+        n2 = sh_bands * sh_bands
+        expected = (scene.n_vertices, n2, n2) if mode == MODE_MATRIX else (scene.n_vertices, n2)
+        if data.shape != expected:
+            raise InvalidInputError(f"artifact '{key}' has shape {data.shape}; expected {expected} "
+                                    f"for scene '{scene.name}' with sh_bands={sh_bands}")
+        self.mode, self.sh_bands = mode, sh_bands
+        super().__init__(scene, width=width, height=height, vertex_shader="vertex_glossy.vert",
+                         fragment_shader="vertex_prt.frag",
+                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": mode},
+                         extra_attributes=material_attributes(scene))
+        limit = int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+        if limit and data.nbytes > limit:
+            RasterRenderer.release(self)
+            raise InvalidInputError(
+                f"{key} buffer of {_format_bytes(data.nbytes)} exceeds this GL's shader storage "
+                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh")
+        # Vertex-major: transfer[v·n² + i] or matrices[v·n⁴ + k·n² + i].
+        self.data_buffer = self.ctx.buffer(data.tobytes())
+        self.triple = _triple.TripleProductBuffers(self.ctx, sh_bands, gamma=mode == MODE_TP)
+        self._resident = [self.data_buffer]
+
+    def _bind(self, view, light) -> None:
+        self.data_buffer.bind_to_storage_buffer(0)
+        if self.mode == MODE_TP:
+            self.triple.bind_gamma()
+        elif self.mode == MODE_TPFL:
+            self.triple.bind_tpfl(light)
+        if "light_sh" in self.program:  # TPFL folds the light into M: the uniform is unused
+            coeffs = light.sh(self.sh_bands).astype(np.float32)  # (n², 3)
+            self.program["light_sh"].write(np.ascontiguousarray(coeffs).tobytes())
+
+    def memory_bytes(self) -> int:
+        """Per-vertex transfer data plus the Γ list (TP) or the current TPFL matrix."""
+        return int(self.data_buffer.size) + self.triple.memory_bytes()
+
+    def release(self) -> None:
+        super().release()
+        self.triple.release()
