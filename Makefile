@@ -10,7 +10,7 @@ export DRJIT_LIBLLVM_PATH ?= $(LIBLLVM)
 endif
 
 .PHONY: setup test test-slow test-assets bench assets demo refs regress regress-update \
-        table-tessellation tables clean
+        table-tessellation table-volume tables clean
 
 setup: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
@@ -50,7 +50,10 @@ regress-update: setup  ## the only way to rewrite tests/baselines/metrics.json
 table-tessellation: setup  ## reports/table-tessellation.{md,csv}
 	$(PRTBENCH) table tessellation --profile $(PROFILE)
 
-tables: table-tessellation
+table-volume: setup  ## reports/table-volume.{md,csv}
+	$(PRTBENCH) table volume --profile $(PROFILE)
+
+tables: table-tessellation table-volume
 
 clean:
 	rm -rf out results .pytest_cache
