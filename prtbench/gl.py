@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import statistics
+import tempfile
 import time
 import threading
 from collections.abc import Callable, Mapping, Sequence
@@ -255,7 +256,8 @@ def _compile_error_message(log: str, files: list[Path], stage_files: list[Path])
 
 def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
                  defines: Mapping[str, object] | None = None, geometry: str | Path | None = None,
-                 search_path: Sequence[str | Path] = ()):
+                 search_path: Sequence[str | Path] = (),
+                 sources: Mapping[str, str] | None = None):
     """Compile and link a program from GLSL stage files.
 
     Stage files are looked up as ``<dir>/<name>`` or ``<dir>/<name>.glsl`` in ``search_path``
@@ -264,6 +266,10 @@ def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
     textually, before the GLSL preprocessor, so an ``#include`` inside ``#if`` is always taken.
     ``defines`` become ``#define KEY VALUE`` lines right after ``#version``; ``#line`` directives
     keep compiler line numbers pointing into the original files.
+
+    ``sources`` maps plain file names to GLSL text: virtual files for code generated at run time
+    (e.g. an SDF scene's ``scene_sdf.glsl``), usable as stage files or includes and searched
+    before ``search_path`` (an include is still looked up beside its including file first).
 
     Returns
     -------
@@ -276,6 +282,17 @@ def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
     PrtbenchError
         On compile or link errors, naming the shader file and the first error line.
     """
+    if sources:
+        # Materialised in a private directory for the duration of the build, so the include
+        # resolution, #line numbering and error messages work unchanged.
+        with tempfile.TemporaryDirectory(prefix="prtbench-glsl-") as tmp:
+            for name, text in sources.items():
+                if not name or Path(name).name != name:
+                    raise InvalidInputError(f"virtual shader name {name!r}; accepted: a plain "
+                                            "file name such as 'scene_sdf.glsl'")
+                (Path(tmp) / name).write_text(text)
+            return load_program(ctx, vertex, fragment, defines=defines, geometry=geometry,
+                                search_path=[tmp, *search_path])
     dirs = [Path(d) for d in search_path] + [shader_dir()]
     files: list[Path] = []
     stages = {"vertex_shader": vertex, "fragment_shader": fragment, "geometry_shader": geometry}
@@ -411,5 +428,5 @@ class GpuTimer:
                           source=self.source)
 
     def release(self) -> None:
-        """Free the query object."""
-        self._query.release()
+        """Drop the query object (moderngl 5.13 Query has no release(): the context frees it)."""
+        self._query = None

@@ -1,0 +1,216 @@
+"""Transfer-texture renderer: depth pre-pass, then per-fragment TP or TPFL shading.
+
+The transfer textures live in one RGBA ``sampler2DArray`` (T_0 of every texture of the set)
+and, with bounces, a second one (T_1 … T_k). Lookups are bilinear (or nearest, ``filtering``)
+within the atlas: conservative G-buffer coverage plus at least one ring of dilation guarantee
+that every texel a lookup inside a triangle reads holds data of that triangle's chart. No
+mip-maps (PRTT does not use them either; the knob would change what is measured).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from prtbench import gl
+from prtbench.errors import InvalidInputError
+from prtbench.method import Artifact, FrameTimes, Renderer
+
+from .. import _triple
+from .atlas import AtlasMesh
+from .shading import ShadingInputs, normal_map_texture
+from .texels import layer_count, rgba_layers
+
+
+class TextureRenderer(Renderer):
+    """Draws the atlas mesh: depth-only pre-pass, then shading with depth test LEQUAL.
+
+    Parameters
+    ----------
+    scene : Scene
+    artifact : Artifact
+        From :meth:`methods.texture.TextureMethod.precompute`.
+    config : TextureConfig
+    product : {"tp", "tpfl"}
+    width, height : int
+    """
+
+    def __init__(self, scene, artifact: Artifact, config, *, product: str, width: int,
+                 height: int):
+        self.scene, self.width, self.height = scene, int(width), int(height)
+        self.product = product
+        self.depth_prepass = bool(config.depth_prepass)
+        self.sh_bands = int(config.sh_bands)
+        self.meta = dict(artifact.meta)
+        self.ctx = ctx = gl.create_context()
+        self.renderer_string = gl.renderer_string(ctx)
+        arrays = artifact.arrays
+        transfer = arrays["transfer"]
+        bounce = arrays.get("bounce")
+        sets, res = transfer.shape[0], transfer.shape[1]
+        n_bounces = 0 if bounce is None else bounce.shape[0]
+        self.transfer_layers = layer_count(transfer.shape[-1])
+        self.bounce_layers = layer_count(3 * self.sh_bands**2)
+        max_layers = int(ctx.info["GL_MAX_ARRAY_TEXTURE_LAYERS"])
+        needed = max(sets * self.transfer_layers, n_bounces * sets * self.bounce_layers)
+        if needed > max_layers:
+            raise InvalidInputError(
+                f"transfer textures need {needed} array layers; accepted: <= {max_layers} "
+                f"(GL_MAX_ARRAY_TEXTURE_LAYERS): fewer sh_bands, bounces or texture sets")
+        defines = {"SH_BANDS": self.sh_bands, "PRODUCT_TP": product == "tp",
+                   "TRANSFER_LAYERS": self.transfer_layers, "BOUNCES": n_bounces,
+                   "BOUNCE_LAYERS": self.bounce_layers, "TEXTURE_SETS": sets}
+        self.program = gl.load_program(ctx, "texture_prt.vert", "texture_prt.frag", defines=defines)
+        self.depth_program = gl.load_program(ctx, "texture_depth.vert", "texture_depth.frag")
+        self._resident = []
+        self._texture_bytes = 0
+        filter_ = ctx.LINEAR if config.filtering == "bilinear" else ctx.NEAREST
+        self.transfer_texture = self._texture_array(rgba_layers(transfer), filter_)
+        self.bounce_texture = None
+        if n_bounces:
+            self.bounce_texture = self._texture_array(
+                rgba_layers(bounce.reshape(n_bounces * sets, res, res, -1)), filter_)
+        self.normal_map = normal_map_texture(ctx, ShadingInputs.from_scene(scene).normal_map)
+        self._upload_mesh(arrays)
+        self.timer = gl.GpuTimer(ctx)
+        self.target = gl.RenderTarget(ctx, self.width, self.height)
+        # Γ list (TP) or the per-light matrix M (TPFL), uploaded exactly as the vertex methods do.
+        self.triple = _triple.TripleProductBuffers(ctx, self.sh_bands, gamma=product == "tp")
+        self._light_bound = None
+
+    # -- setup ------------------------------------------------------------------------------
+    def _texture_array(self, layers: np.ndarray, filter_):
+        dtype = "f2" if layers.dtype == np.float16 else "f4"
+        n, r = layers.shape[0], layers.shape[1]
+        tex = self.ctx.texture_array((r, r, n), 4, np.ascontiguousarray(layers).tobytes(),
+                                     dtype=dtype)
+        tex.filter = (filter_, filter_)
+        tex.repeat_x = tex.repeat_y = False  # CLAMP_TO_EDGE: charts never wrap around
+        self._resident.append(tex)
+        self._texture_bytes += int(layers.nbytes)
+        return tex
+
+    def _upload_mesh(self, arrays) -> None:
+        scene = self.scene
+        atlas = AtlasMesh.from_arrays(arrays, resolution=int(self.meta["texture_resolution"]),
+                                      sets=int(self.meta["texture_sets"]))
+        shading = ShadingInputs.from_scene(scene)
+        positions, normals, _, _ = scene.merged()
+        src = atlas.vertex_source
+        per_object = {
+            "in_kd": [o.material.kd for o in scene.objects],
+            "in_ks": [o.material.ks for o in scene.objects],
+            "in_shininess": [[o.material.shininess] for o in scene.objects],
+        }
+        object_of_vertex = np.repeat(np.arange(len(scene.objects)),
+                                     [o.mesh.n_vertices for o in scene.objects])[src]
+        attributes = {
+            "in_position": positions[src], "in_normal": normals[src], "in_atlas_uv": atlas.uvs,
+            "in_mesh_uv": shading.mesh_uvs[src], "in_tangent": shading.tangents[src],
+            "in_texture_set": atlas.texture_set.astype(np.float32)[:, None],
+            "in_normal_mapped": shading.normal_mapped[src][:, None],
+            **{name: np.asarray(v, np.float32)[object_of_vertex] for name, v in per_object.items()},
+        }
+        buffers = {name: self.ctx.buffer(np.ascontiguousarray(v, np.float32).tobytes())
+                   for name, v in attributes.items()}
+        self.index_buffer = self.ctx.buffer(np.ascontiguousarray(atlas.faces, np.uint32).tobytes())
+        self._mesh_buffers = [*buffers.values(), self.index_buffer]
+
+        def vao(program):
+            bindings = [(buf, f"{np.asarray(attributes[name]).reshape(len(src), -1).shape[1]}f", name)
+                        for name, buf in buffers.items() if name in program]
+            return self.ctx.vertex_array(program, bindings, index_buffer=self.index_buffer,
+                                         index_element_size=4)
+
+        self.vao = vao(self.program)
+        self.depth_vao = vao(self.depth_program)
+
+    # -- per light --------------------------------------------------------------------------
+    def _check_light(self, light) -> None:
+        if not self.meta.get("bounces"):
+            return
+        if light.content_hash() != self.meta.get("bounce_light_hash"):
+            raise InvalidInputError(
+                f"this artifact's {self.meta['bounces']} bounce texture(s) bake light "
+                f"'{self.meta['bounce_light']}', not '{light.name}'; accepted: render with "
+                f"light '{self.meta['bounce_light']}', or precompute with "
+                f"bounce_light={light.name} (--set bounce_light={light.name})")
+
+    def _bind_light(self, light) -> None:
+        if self.product == "tp":
+            self.triple.bind_gamma()
+            key = light.content_hash()
+            if self._light_bound != key:
+                coeffs = np.ascontiguousarray(light.sh(self.sh_bands), np.float32)  # (n², 3)
+                self.program["light_sh"].write(coeffs.tobytes())
+                self._light_bound = key
+        else:
+            self.triple.bind_tpfl(light)  # M recomputed on the CPU only when the light changes
+
+    # -- drawing ----------------------------------------------------------------------------
+    def _draw(self, view, light) -> None:
+        from methods._raster import clip_planes
+
+        near, far = clip_planes(self.scene, view)
+        clip_from_world = (view.clip_from_camera(self.width / self.height, near, far)
+                           @ view.camera_from_world()).T.astype(np.float32).tobytes()
+        self.program["clip_from_world"].write(clip_from_world)
+        self.depth_program["clip_from_world"].write(clip_from_world)
+        if "eye" in self.program:
+            self.program["eye"].value = tuple(float(c) for c in view.eye)
+        self._bind_light(light)
+        self.transfer_texture.use(location=0)
+        self.program["transfer_layers"].value = 0
+        if self.bounce_texture is not None:
+            self.bounce_texture.use(location=1)
+            self.program["bounce_layers"].value = 1
+        self.normal_map.use(location=2)
+        if "normal_map" in self.program:
+            self.program["normal_map"].value = 2
+        fbo = self.target.fbo
+        self.target.use()
+        fbo.color_mask = (True, True, True, True)
+        fbo.depth_mask = True
+        self.target.clear()
+        ctx = self.ctx
+        ctx.enable(gl.moderngl.DEPTH_TEST)
+        ctx.disable(gl.moderngl.CULL_FACE)  # back faces occlude, and are shaded black
+        ctx.depth_func = "<"
+        if not self.depth_prepass:
+            self.vao.render()
+            return
+        # Pass 1: depth only, so pass 2 shades each pixel's visible fragment once.
+        fbo.color_mask = (False, False, False, False)
+        self.depth_vao.render()
+        # Pass 2: shading, early depth test against the pre-pass depth, no depth writes.
+        fbo.color_mask = (True, True, True, True)
+        fbo.depth_mask = False
+        ctx.depth_func = "<="
+        self.vao.render()
+        fbo.depth_mask = True
+        ctx.depth_func = "<"
+
+    def render(self, view, light) -> np.ndarray:
+        self._check_light(light)
+        self._draw(view, light)
+        return np.ascontiguousarray(self.target.read()[..., :3])
+
+    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
+        self._check_light(light)
+        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
+                                       frames=frames)
+        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
+                          self.renderer_string, times.source)
+
+    def memory_bytes(self) -> int:
+        """Transfer texture arrays (all T_0 and T_b layers, RGBA, at the stored precision) plus
+        the small Γ list (TP, ~9 KB at 5 bands) or TPFL matrix (7.5 KB), as the vertex methods
+        count them."""
+        return self._texture_bytes + self.triple.memory_bytes()
+
+    def release(self) -> None:
+        for obj in [self.vao, self.depth_vao, *self._mesh_buffers, self.program,
+                    self.depth_program, self.normal_map, *self._resident]:
+            obj.release()
+        self.triple.release()
+        self.target.release()
+        self._resident = []
