@@ -69,9 +69,19 @@ def tpfl_matrix_rgb(light: np.ndarray, bands: int) -> np.ndarray:
     return np.ascontiguousarray(sh.tpfl_matrix(light, bands), dtype=np.float32)
 
 
-def tpfl_buffer_data(light: np.ndarray, bands: int) -> bytes:
-    """Bytes of the TPFL storage buffer: float32 (n², n², 3) C-order."""
-    return tpfl_matrix_rgb(light, bands).tobytes()
+def tpfl_buffer_data(light: np.ndarray, bands: int, *, ssbo: bool = False) -> bytes:
+    """Bytes of the TPFL buffer.
+
+    The default is the std140 uniform-block layout prt_shading.glsl reads (one vec4 per (i, k):
+    float32 (n², n², 4), alpha 0); ``ssbo=True`` gives the packed (n², n², 3) layout of its
+    ``PRT_TPFL_SSBO`` variant.
+    """
+    m = tpfl_matrix_rgb(light, bands)
+    if ssbo:
+        return m.tobytes()
+    padded = np.zeros(m.shape[:2] + (4,), dtype=np.float32)
+    padded[..., :3] = m
+    return padded.tobytes()
 
 
 class TripleProductBuffers:
@@ -114,7 +124,7 @@ class TripleProductBuffers:
             else:
                 self.tpfl_buffer.write(data)
             self._tpfl_key = key
-        self.tpfl_buffer.bind_to_storage_buffer(TPFL_BINDING)
+        self.tpfl_buffer.bind_to_uniform_block(TPFL_BINDING)
 
     def memory_bytes(self) -> int:
         """Bytes of the resident Γ and TPFL buffers."""

@@ -29,8 +29,12 @@
 //   PRT_GAMMA_BINDING = 1: Γ non-zeros, one PrtGammaEntry {uint ijk; float value;} (8 bytes) per
 //       entry, ijk = i | (j << 8) | (k << 16); the entry count is the buffer length (the whole
 //       buffer must hold exactly the list). Built by methods._triple.gamma_entries(n).
-//   PRT_TPFL_BINDING = 2: M as float32 (n², n², 3) C-order, M[(i·n² + k)·3 + c]. Built by
-//       methods._triple.tpfl_buffer_data(light, n).
+//   PRT_TPFL_BINDING = 2: M in a std140 UNIFORM block, one vec4 (rgb, pad) per (i, k), entry
+//       i·n² + k (n⁴·16 bytes: 64 KiB at 8 bands, the GL minimum block size limit). Built by
+//       methods._triple.tpfl_buffer_data(light, n). Uniform reads are ~7× cheaper than storage-
+//       buffer reads in llvmpipe fragment shaders. #define PRT_TPFL_SSBO to read M instead from
+//       a std430 storage buffer at the same binding, float32 (n², n², 3) C-order
+//       (methods._triple.tpfl_buffer_data(light, n, ssbo=True)).
 // The light SH is passed by value (typically a `uniform vec3 light_sh[SH_COEFFS]`, (n², 3) RGB).
 #ifndef PRTBENCH_PRT_SHADING_GLSL
 #define PRTBENCH_PRT_SHADING_GLSL
@@ -54,9 +58,15 @@ layout(std430, binding = PRT_GAMMA_BINDING) readonly buffer PrtGamma {
     PrtGammaEntry prt_gamma[];
 };
 
+#ifdef PRT_TPFL_SSBO
 layout(std430, binding = PRT_TPFL_BINDING) readonly buffer PrtTpfl {
     float prt_tpfl[];
 };
+#else
+layout(std140, binding = PRT_TPFL_BINDING) uniform PrtTpflBlock {
+    vec4 prt_tpfl_m[SH_COEFFS * SH_COEFFS];
+};
+#endif
 
 // g_l = N_l (s+1) I_l with I_0 = 1/(s+1), I_1 = 1/(s+2), I_l = (s−l+2)/(s+l+1) I_{l−2}
 // (prtbench.sh._legendre_moments). Carrying r_l = (s+1) I_l directly keeps every step a ratio
@@ -115,11 +125,18 @@ void tpfl_product(float T[SH_COEFFS], out vec3 H[SH_COEFFS]) {
         H[k] = vec3(0.0);
     }
     for (int i = 0; i < SH_COEFFS; ++i) {
+#ifdef PRT_TPFL_SSBO
         int row = i * SH_COEFFS * 3;
         for (int k = 0; k < SH_COEFFS; ++k) {
             int at = row + 3 * k;
             H[k] += T[i] * vec3(prt_tpfl[at], prt_tpfl[at + 1], prt_tpfl[at + 2]);
         }
+#else
+        int row = i * SH_COEFFS;
+        for (int k = 0; k < SH_COEFFS; ++k) {
+            H[k] += T[i] * prt_tpfl_m[row + k].xyz;
+        }
+#endif
     }
 }
 

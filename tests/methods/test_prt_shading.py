@@ -55,7 +55,7 @@ def _run_probe(bands: int, c: dict, *, in_vertex: bool) -> dict:
         buffers[0].bind_to_storage_buffer(0)
         buffers[1].bind_to_storage_buffer(3)
         buffers[2].bind_to_storage_buffer(_triple.GAMMA_BINDING)
-        buffers[3].bind_to_storage_buffer(_triple.TPFL_BINDING)
+        buffers[3].bind_to_uniform_block(_triple.TPFL_BINDING)
         program["light_sh"].write(c["L"].astype(np.float32).tobytes())
         target.use()
         target.clear()

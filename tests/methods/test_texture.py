@@ -68,7 +68,7 @@ def test_furnace_white_light_convex_diffuse_sphere_is_albedo(method, storage):
     assert np.all(image[~covered] == 0)
     # Memory: ceil(9/4) = 3 RGBA layers of 128² texels, 4 or 2 bytes each, plus Γ (TP) or M.
     layer_bytes = 3 * 128 * 128 * 4 * (4 if storage == "float32" else 2)
-    extra = 83 * 8 if method == "texture-tp" else 9 * 9 * 3 * 4
+    extra = 83 * 8 if method == "texture-tp" else 9 * 9 * 4 * 4  # M: std140 vec4 per (i, k)
     assert facts["memory_bytes"] == layer_bytes + extra
 
 
@@ -163,7 +163,7 @@ def test_one_bounce_textures_approach_the_one_bounce_reference():
     reference_gain = refs[1].image[mask].mean() / refs[0].image[mask].mean()
     assert abs(gain - reference_gain) < 0.05, (gain, reference_gain)
     # One extra RGB texture array: ceil(3·25/4) = 19 RGBA32F layers per bounce, 7 for T_0.
-    assert facts["memory_bytes"] == (7 + 19) * 64 * 64 * 16 + 25 * 25 * 3 * 4
+    assert facts["memory_bytes"] == (7 + 19) * 64 * 64 * 16 + 25 * 25 * 4 * 4  # M: std140 vec4 per (i, k)
 
 
 def test_bounce_textures_are_baked_for_one_light():
