@@ -13,6 +13,7 @@ method and in the reference, and masked metrics ignore them.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -382,11 +383,34 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
     builder = SCENES.get(name)
     if variant not in VARIANTS:
         raise InvalidInputError(f"unknown variant '{variant}'; known: {', '.join(VARIANTS)}")
-    import inspect
-
-    accepted = [p for p in inspect.signature(builder).parameters if p != "variant"]
+    signature = inspect.signature(builder).parameters
+    accepted = [p for p in signature if p != "variant"]
     for key in params:
         if key not in accepted:
             raise InvalidInputError(
                 f"scene '{name}' has no parameter '{key}'; accepted: {', '.join(accepted) or '(none)'}")
-    return builder(variant=variant, **params)
+    # Command-line values arrive as strings: give them the type of the builder's default, so
+    # `--scene-param ground_subdivisions=64` and a sweep's int 64 build (and cache) one scene.
+    typed = {key: _typed_param(name, key, value, signature[key].default)
+             for key, value in params.items()}
+    return builder(variant=variant, **typed)
+
+
+def _typed_param(scene: str, key: str, value: Any, default: Any) -> Any:
+    if not isinstance(value, str) or isinstance(default, str) or default is inspect.Parameter.empty:
+        return value
+    try:
+        if isinstance(default, bool):
+            low = value.lower()
+            if low not in ("true", "false", "1", "0", "yes", "no"):
+                raise ValueError
+            return low in ("true", "1", "yes")
+        if isinstance(default, int):
+            return int(value)
+        if isinstance(default, float):
+            return float(value)
+    except ValueError:
+        raise InvalidInputError(f"scene '{scene}' parameter {key}={value!r}; accepted: "
+                                f"{type(default).__name__}") from None
+    return value
+
