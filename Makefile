@@ -9,8 +9,7 @@ ifneq (,$(wildcard $(LIBLLVM)))
 export DRJIT_LIBLLVM_PATH ?= $(LIBLLVM)
 endif
 
-.PHONY: setup test test-slow test-assets bench assets demo refs regress regress-update \
-        table-tessellation table-volume tables clean
+.PHONY: setup test test-slow test-assets bench assets demo regress regress-update tables figures clean
 
 setup: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
@@ -47,13 +46,19 @@ regress: setup
 regress-update: setup  ## the only way to rewrite tests/baselines/metrics.json
 	$(PRTBENCH) regress --update
 
-table-tessellation: setup  ## reports/table-tessellation.{md,csv}
-	$(PRTBENCH) table tessellation --profile $(PROFILE)
+# Paper tables and figures: `make table-3.1`, `make figure-3.4`, ... (PROFILE=quick|paper).
+# Each writes reports/table-<name>.{md,csv} or reports/figure-<name>.{png,md}.
+TABLES  := tessellation volume 3.1 3.2 4.1 4.2 4.3 4.4 ddprt-1
+FIGURES := 3.4 3.5 3.6 4.11 4.13 ddprt-8 ddprt-12 ddprt-14
 
-table-volume: setup  ## reports/table-volume.{md,csv}
-	$(PRTBENCH) table volume --profile $(PROFILE)
+table-%: setup
+	$(PRTBENCH) table $* --profile $(PROFILE)
 
-tables: table-tessellation table-volume
+figure-%: setup
+	$(PRTBENCH) figure $* --profile $(PROFILE)
+
+tables: $(addprefix table-,$(TABLES))
+figures: $(addprefix figure-,$(FIGURES))
 
 clean:
 	rm -rf out results .pytest_cache
