@@ -1,0 +1,162 @@
+"""Thesis figure 3.6 (PRTT Fig. 6): normal maps with transfer textures.
+
+The room (glossy) with its two-triangle floor, rendered by ``texture-tpfl`` without and with the
+floor's tangent-space normal map (``normal_mapped_floor=True``): the precompute traces transfer
+at the shading normal of every texel, so the tiles' bevels appear without a single extra
+vertex (PRTT §6.2). Panels: without, with (wireframe inset of the floor), the mesh's wireframe,
+and the difference the normal map makes.
+
+No path metric for the normal-mapped render: our Mitsuba reference does not apply normal maps,
+so comparing against it would measure the normal map itself as error. That render is therefore
+*not* a runner cell (no result row claims an error for it): the figure renders it directly from
+the cached artifact and times it with the profile's warm-up and frame counts. The render
+without a normal map is an ordinary runner cell, so its PSNR against the path reference is in
+the results store.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from prtbench.reproduction import Cell, Figure
+
+from . import _panels
+from .table_3_1 import ensure_texture_methods
+
+SCENE = "room"
+VARIANT = "glossy"
+METHOD = "texture-tpfl"
+#: Box of the wireframe inset: the floor in front of the table (first view).
+CROP = (0.60, 0.98, 0.55, 0.98)
+WIRE_SCALE = 2
+#: Gain of the difference panel (display-space |with − without|).
+DIFFERENCE_GAIN = 4.0
+
+
+def render_direct(*, method: str, scene, profile: str, width: int, height: int,
+                  progress: bool = True) -> dict:
+    """Render and time ``method`` on ``scene``'s first view outside the runner.
+
+    Returns
+    -------
+    dict
+        ``image`` (H, W, 3) linear float32, ``frame_ms``, ``frame_ms_p95``, ``memory_bytes``,
+        ``renderer``, ``timing_source``, ``config`` (dict).
+    """
+    from prtbench import config as config_mod
+    from prtbench.lights import get_light
+    from prtbench.method import METHODS, load_or_precompute
+    from prtbench.profiles import get_profile
+
+    cls = METHODS.get(method)
+    config = cls.make_config(profile=profile)
+    cls.validate(scene, config)
+    light = get_light(scene.default_light)
+    artifact = load_or_precompute(cls, scene, config, progress=progress)
+    renderer = cls.renderer(scene, artifact, config, width=width, height=height)
+    prof = get_profile(profile)
+    view = scene.trajectory.views[0]
+    try:
+        image = renderer.render(view, light)
+        times = renderer.frame_time(view, light, warmup=prof.timing_warmup,
+                                    frames=prof.timing_frames)
+        memory = renderer.memory_bytes()
+    finally:
+        renderer.release()
+    return {"image": image, "frame_ms": times.median_ms, "frame_ms_p95": times.p95_ms,
+            "memory_bytes": memory, "renderer": renderer.renderer_string, "timing_source": times.source,
+            "config": config_mod.to_dict(config)}
+
+
+class Figure36(Figure):
+    name = "3.6"
+    paper = ("Sirikonda (2023) thesis, figure 3.6 = PRTT (2022) Fig. 6: a minimally tessellated "
+             "floor with a normal map, rendered with TPFL and transfer textures")
+    title = "Figure 3.6: normal maps with transfer textures (room floor, texture TPFL)"
+
+    def cells(self, profile: str) -> list[Cell]:
+        """The runner cell: the room without normal map (the normal-mapped render is direct)."""
+        ensure_texture_methods()
+        return [Cell(method=METHOD, scene=SCENE, variant=VARIANT, views=1,
+                     scene_params={"normal_mapped_floor": False},
+                     label={"normal_map": False})]
+
+    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
+             progress: bool = True) -> list[Path]:
+        from prtbench import imageio
+        from prtbench.scene import get_scene
+
+        cells = self.cells(profile)
+        mapped_scene = get_scene(SCENE, variant=VARIANT, normal_mapped_floor=True).with_views(1)
+        ensure_texture_methods()
+        plain = _panels.run_cells(cells, profile=profile, results_path=results_path,
+                                  progress=progress, tag=f"figure {self.name}")[0]
+        h, w = plain.image.shape[:2]
+        print(f"[figure {self.name}] normal-mapped floor (direct render, no path metric)",
+              flush=True)
+        mapped = render_direct(method=METHOD, scene=mapped_scene, profile=profile, width=w,
+                               height=h, progress=progress)
+        exposure = plain.scene.exposure
+        without = imageio.display(plain.image, exposure=exposure)
+        with_map = imageio.display(mapped["image"], exposure=exposure)
+        view = mapped_scene.trajectory.views[0]
+        edges, _ = _panels.render_wireframe(mapped_scene, view, width=WIRE_SCALE * w,
+                                            height=WIRE_SCALE * h)
+        edges_1x = edges.reshape(h, WIRE_SCALE, w, WIRE_SCALE).mean(axis=(1, 3))
+        stored = plain.rows
+        plain_fps = _panels.fps(stored)
+        mapped_fps = 1000.0 / mapped["frame_ms"]
+        psnr = float(stored["metric_psnr_masked"].mean())
+        difference = np.clip(DIFFERENCE_GAIN * np.abs(with_map - without), 0, 1)
+        wire = without * 0.45 + 0.55 * edges_1x[..., None] * np.asarray(_panels.WIRE, np.float32)
+        panels = [
+            _panels.caption(without, f"{plain_fps:.3g} FPS\npath PSNR {psnr:.1f} dB"),
+            _panels.caption(_panels.wireframe_overlay(with_map, edges, crop=CROP),
+                            f"{mapped_fps:.3g} FPS\nno path metric"),
+            _panels.caption(wire.astype(np.float32), f"{mapped_scene.n_triangles} tris"),
+            _panels.caption(difference.astype(np.float32), f"|difference| x{DIFFERENCE_GAIN:g}"),
+        ]
+        image = _panels.grid([panels], title=self.title + f" ({profile} profile)",
+                             column_labels=["without normal map", "with normal map",
+                                            "wireframe (2-triangle floor)",
+                                            "effect of the normal map"])
+        reports_dir = Path(reports_dir)
+        reports_dir.mkdir(parents=True, exist_ok=True)
+        png = reports_dir / f"figure-{self.name}.png"
+        imageio.write_png(png, image)
+        floor_mask = np.abs(with_map - without).max(axis=-1) > 1.0 / 255
+        header = ("render", "source", "FPS", "frame ms", "PSNR masked vs path (dB)",
+                  "memory MiB", "timing", "GL renderer")
+        rows = [
+            ["without normal map", f"results store, run {plain.run_id}", plain_fps,
+             float(stored["frame_ms"].median()), psnr,
+             float(stored["memory_bytes"].iloc[0]) / 2**20, str(stored["timing_source"].iloc[0]),
+             str(stored["renderer"].iloc[0])],
+            ["with normal map", "rendered directly by the figure (not stored)", mapped_fps,
+             mapped["frame_ms"], "no path metric", mapped["memory_bytes"] / 2**20,
+             mapped["timing_source"], mapped["renderer"]],
+        ]
+        lines = [
+            f"# {self.title}", "", f"Source: {self.paper}.", "",
+            f"![figure {self.name}](figure-{self.name}.png)", "",
+            f"Profile `{profile}`: panels {w}×{h}, first trajectory view of `{SCENE}` "
+            f"({VARIANT}), texture resolution {mapped['config']['texture_resolution']}², "
+            f"{mapped_scene.n_triangles} triangles with or without the normal map (the floor "
+            "stays two triangles).", "",
+            "**No path metric for the normal-mapped render:** our Mitsuba reference does not "
+            "apply normal maps, so it is not compared with it, and the figure renders it "
+            "outside the runner (no result row). The render without the normal map is a "
+            "runner cell; its masked PSNR against the direct-only path reference is stored.", "",
+            f"The normal map changes {100 * floor_mask.mean():.1f} % of the pixels by more "
+            "than one display level (last panel, |with − without| × "
+            f"{DIFFERENCE_GAIN:g}).", "",
+            *_panels.markdown_table(header, rows),
+            "", f"Scene substitution: {plain.scene.substitution}.",
+        ]
+        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        return [png, md]
+
+
+FIGURE = Figure36()
