@@ -1,0 +1,99 @@
+"""Learnt transfer (Sirikonda 2023 thesis, ch. 4): an MLP σ(p, n) -> T replaces stored transfer.
+
+Precompute: Turk samples of the surface kept off vertices, their transfer traced against the
+whole scene (:mod:`.data`), one small MLP per sub-scene (:mod:`.subdivide`; one for the whole
+scene by default) trained with ℓ1 on the transfer (:mod:`.network`), and the held-out error on
+mesh vertices. Training is cached by scene geometry and the training knobs (:mod:`.model`).
+
+Render (``renderer`` knob):
+
+* ``glsl`` (default, thesis §4.1.4.1): weights hard-coded as mat4 blocks in the fragment shader
+  (:mod:`.glsl`), early depth pre-pass, the network per visible pixel, TPFL/TP shading from
+  ``prt_shading.glsl``. Networks beyond ``glsl_weight_limit`` hard-coded constants are refused
+  with a message suggesting ``renderer=torch`` (thesis table 4.4: k ≥ 256 fails in GLSL).
+* ``torch`` (thesis §4.1.4.2): GL G-buffers -> torch on covered pixels -> the same shading
+  (:mod:`.torch_renderer`); CUDA where present, CPU otherwise.
+
+Entry point: ``"learnt" = "methods.learnt:LearntTransfer"``.
+"""
+
+from __future__ import annotations
+
+from prtbench.errors import InvalidInputError
+from prtbench.method import Artifact, Method, register_method
+from prtbench.scene import Texture
+
+from .config import PROFILE_OVERRIDES, LearntConfig
+
+__all__ = ["LearntTransfer", "LearntConfig"]
+
+
+@register_method("learnt")
+class LearntTransfer(Method):
+    """Transfer regressed by small MLPs, evaluated per pixel in GLSL or torch."""
+
+    Config = LearntConfig
+    precompute_version = "1"
+    summary = "thesis ch. 4 learnt transfer: MLP (p, n) -> SH transfer, GLSL or torch, TPFL/TP"
+    profile_overrides = PROFILE_OVERRIDES
+    regression_case = {"scene": "plants", "variant": "glossy", "light": "sky"}
+
+    @classmethod
+    def validate(cls, scene, config: LearntConfig) -> None:
+        from .glsl import check_glsl_limit
+        from .model import spec_of
+
+        for obj in scene.objects:
+            for attr in ("kd", "ks", "shininess"):
+                if isinstance(getattr(obj.material, attr), Texture):
+                    raise InvalidInputError(
+                        f"method 'learnt' takes a constant {attr} per object, but '{obj.name}' "
+                        f"in scene '{scene.name}' has a textured {attr}; accepted: constant kd, "
+                        "ks, shininess")
+        if config.hidden % 4:
+            raise InvalidInputError(f"learnt hidden={config.hidden}; accepted: multiples of 4 "
+                                    "(the GLSL path packs weights into mat4 blocks)")
+        if len(config.grid_cells) != 3 or min(config.grid_cells) < 1:
+            raise InvalidInputError(f"learnt grid_cells={config.grid_cells}; accepted: three "
+                                    "positive integers, e.g. 2,1,2")
+        if config.device == "cuda":
+            from .network import resolve_device
+
+            resolve_device("cuda")
+        if config.renderer == "glsl":
+            # One network is the least the partition can merge to; the renderer re-checks
+            # with the trained sub-scene count.
+            check_glsl_limit(spec_of(config), 1, config.glsl_weight_limit)
+
+    @classmethod
+    def precompute(cls, scene, config: LearntConfig, *, progress: bool = True) -> Artifact:
+        from .glsl import hardcoded_floats
+        from .model import train_model
+
+        model, stats = train_model(scene, config, progress=progress)
+        meta = {**stats, "glsl_hardcoded_floats": hardcoded_floats(model.spec, len(model.networks))}
+        if progress:
+            import sys
+
+            vertices = stats["heldout_vertices"]
+            print(f"[learnt] {stats['groups']} network(s), {stats['parameters']:,} parameters, "
+                  f"data {stats['data_s']:.1f} s, training {stats['train_s']:.1f} s on "
+                  f"{stats['device']}; held-out error on {vertices['points']} mesh vertices: "
+                  f"relative RMS {vertices['relative_rms']:.4f}, DC {vertices['dc_relative']:.4f}"
+                  f"; tanh peak {stats['heldout_max_abs_tanh']:.3f} (targets mapped to "
+                  f"±{stats['target_max_abs_mapped']:.2f})", file=sys.stderr, flush=True)
+        return Artifact("learnt", model.to_arrays(), meta)
+
+    @classmethod
+    def renderer(cls, scene, artifact: Artifact, config: LearntConfig, *, width: int,
+                 height: int):
+        from .model import LearntModel
+
+        model = LearntModel.from_arrays(artifact.arrays)
+        if config.renderer == "torch":
+            from .torch_renderer import TorchRenderer
+
+            return TorchRenderer(scene, model, config, width=width, height=height)
+        from .renderer import GLSLRenderer
+
+        return GLSLRenderer(scene, model, config, width=width, height=height)
