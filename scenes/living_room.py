@@ -84,7 +84,8 @@ def _front_top_shelves(rng: np.random.Generator) -> tuple[list, list]:
     # Sideboard: 1.4 m long, 0.7 m high, 0.45 m deep, three cubbies, against the back wall.
     cx, cz, w, h, d = -2.5, WALL_Z + 0.25, 1.4, 0.7, 0.45
     boards += [box((w, 0.03, d), center=(cx, y, cz)) for y in (0.08, 0.38, h)]
-    boards += [box((0.03, h, d), center=(cx + dx, h / 2, cz)) for dx in (-w / 2, -w / 6, w / 6, w / 2)]
+    boards += [box((0.03, h, d), center=(cx + dx, h / 2, cz))
+               for dx in (-w / 2, -w / 6, w / 6, w / 2)]
     boards.append(box((w, h, 0.02), center=(cx, h / 2, cz - d / 2 + 0.01)))
     items += _books(rng, x0=cx - w / 2 + 0.03, x1=cx - w / 6 - 0.02, y=0.395, z=cz + 0.02,
                     depth=0.3)

@@ -92,7 +92,8 @@ def _draw(scene, samples: int, *, seed: int, vertex_margin: float, balance: floa
         drawn = sample_surface(scene, samples, seed=seed, min_barycentric=vertex_margin)
         return drawn.points, drawn.normals, drawn.object_ids
     points, normals, ids = [], [], []
-    for index, (obj, count) in enumerate(zip(scene.objects, object_counts(scene, samples, balance))):
+    counts = object_counts(scene, samples, balance)
+    for index, (obj, count) in enumerate(zip(scene.objects, counts)):
         if count == 0:
             continue
         drawn = sample_surface(obj.mesh, int(count), seed=[seed, index],

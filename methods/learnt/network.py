@@ -94,7 +94,7 @@ class Network:
 
 
 def box_normalisation(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre and scale mapping the bounding box of ``points`` (N, 3) into [−1, 1]³ (uniformly)."""
+    """Centre and uniform scale mapping the bounding box of ``points`` (N, 3) into [−1, 1]³."""
     lo, hi = points.min(axis=0).astype(np.float64), points.max(axis=0).astype(np.float64)
     half = max(float(np.max(hi - lo)) / 2, 1e-6)
     return ((lo + hi) / 2).astype(np.float32), float(1.0 / half)
@@ -258,12 +258,10 @@ def train_network(points: np.ndarray, normals: np.ndarray, targets: np.ndarray, 
     torch.manual_seed(seed)
     centre, scale = box if box is not None else box_normalisation(points)
     out_center, out_half = output_map(targets, margin)
-    network = Network([], [], centre, scale, out_center, out_half)
-    net = TorchNetwork(network_like_init(spec, seed), spec, device)
-    net.pos_center = torch.as_tensor(centre, device=device)
-    net.pos_scale = float(scale)
-    net.out_center = torch.as_tensor(out_center, device=device)
-    net.out_half = torch.as_tensor(out_half, device=device)
+    network = network_like_init(spec, seed)
+    network.pos_center, network.pos_scale = np.asarray(centre, np.float32), float(scale)
+    network.out_center, network.out_half = out_center, out_half
+    net = TorchNetwork(network, spec, device)
     net.module.train()
     p = torch.as_tensor(np.asarray(points, np.float32), device=device)
     n = torch.as_tensor(np.asarray(normals, np.float32), device=device)
@@ -272,8 +270,11 @@ def train_network(points: np.ndarray, normals: np.ndarray, targets: np.ndarray, 
     optimiser = torch.optim.Adam(net.module.parameters(), lr=learning_rate)
     batches = math.ceil(len(points) / batch_size)
     total_steps = max(epochs * batches, 1)
-    schedule = torch.optim.lr_scheduler.LambdaLR(
-        optimiser, lambda step: 0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(step, total_steps) / total_steps)))
+
+    def cosine(step: int) -> float:  # 1 -> 0.01 over the run
+        return 0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(step, total_steps) / total_steps))
+
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, cosine)
     order = torch.Generator(device="cpu").manual_seed(seed + 1)
     bar = tqdm(range(epochs), desc=desc, disable=not progress, leave=False, unit="epoch")
     epoch_loss = float("nan")
@@ -300,7 +301,8 @@ def train_network(points: np.ndarray, normals: np.ndarray, targets: np.ndarray, 
     network.stats = {"train_loss": epoch_loss, "loss": loss, "epochs": epochs,
                      "steps": epochs * batches, "train_points": int(len(points)),
                      "train_s": time.perf_counter() - start, "device": device,
-                     "target_max_abs_mapped": float(np.max(np.abs((targets - out_center) / out_half)))}
+                     "target_max_abs_mapped":
+                         float(np.max(np.abs((targets - out_center) / out_half)))}
     return network
 
 
@@ -326,5 +328,6 @@ def heldout_error(predicted: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     truth = np.asarray(truth, np.float64)
     return {"mae": float(np.mean(np.abs(diff))),
             "relative_rms": float(np.linalg.norm(diff) / max(np.linalg.norm(truth), 1e-30)),
-            "dc_relative": float(np.mean(np.abs(diff[:, 0])) / max(np.mean(np.abs(truth[:, 0])), 1e-30)),
+            "dc_relative": float(np.mean(np.abs(diff[:, 0]))
+                                 / max(np.mean(np.abs(truth[:, 0])), 1e-30)),
             "points": int(len(truth))}

@@ -210,7 +210,8 @@ def build_partition(scene, samples, *, kind: str, grid_cells=(2, 1, 2),
         region = initial[samples.object_ids]
         boxes = []
         for g in range(n_regions):
-            pts = np.concatenate([o.mesh.positions for o, gg in zip(scene.objects, initial) if gg == g])
+            pts = np.concatenate([o.mesh.positions for o, gg in zip(scene.objects, initial)
+                                  if gg == g])
             boxes.append((pts.min(axis=0), pts.max(axis=0)))
         adjacency = set()
         for a in range(n_regions):

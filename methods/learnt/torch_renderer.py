@@ -112,7 +112,8 @@ class TorchRenderer(LearntGLBase):
             self.renderer_string = (f"{self.renderer_string} + torch "
                                     f"{torch.cuda.get_device_name(self.device)}")
         else:
-            self.renderer_string = f"{self.renderer_string} + torch CPU ({torch.get_num_threads()} threads)"
+            self.renderer_string = (f"{self.renderer_string} + torch CPU "
+                                    f"({torch.get_num_threads()} threads)")
         bands = model.spec.bands
         self.weight_bytes = 4 * model.spec.n_parameters() * len(model.networks)
         self.light_bytes = 4 * bands**4 * 3
@@ -131,8 +132,8 @@ class TorchRenderer(LearntGLBase):
             from prtbench.sh import triple_product_tensor
 
             if not hasattr(self, "_gamma"):
-                self._gamma = torch.as_tensor(triple_product_tensor(bands), dtype=torch.float32,
-                                              device=self.device)
+                gamma = np.array(triple_product_tensor(bands), np.float32)  # a writable copy
+                self._gamma = torch.as_tensor(gamma, device=self.device)
             coeffs = torch.as_tensor(light.sh(bands), dtype=torch.float32, device=self.device)
             return torch.einsum("ijk,jc->ikc", self._gamma, coeffs)
         key = light.content_hash()

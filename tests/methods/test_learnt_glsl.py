@@ -15,7 +15,8 @@ from prtbench.errors import InvalidInputError
 
 def _random_network(spec: NetworkSpec, seed: int) -> Network:
     rng = np.random.default_rng(seed)
-    weights = [rng.normal(0, 1 / np.sqrt(i), (o, i)).astype(np.float32) for i, o in spec.layer_dims()]
+    weights = [rng.normal(0, 1 / np.sqrt(i), (o, i)).astype(np.float32)
+               for i, o in spec.layer_dims()]
     biases = [rng.normal(0, 0.1, o).astype(np.float32) for _, o in spec.layer_dims()]
     return Network(weights, biases, rng.normal(0, 1, 3).astype(np.float32), 0.7,
                    rng.normal(0, 1, spec.n_outputs).astype(np.float32),

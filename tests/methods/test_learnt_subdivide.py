@@ -13,10 +13,23 @@ from methods.learnt.subdivide import (_Stats, build_partition, merge_by_variance
 from prtbench.scene import get_scene
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _one_torch_thread():
+    # The 2 cores are shared with other jobs: one torch thread trains these small networks
+    # faster than two threads contending for them.
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
 def _samples(points, transfer=None, object_ids=None):
     points = np.asarray(points, np.float32)
     n = len(points)
-    transfer = np.zeros((n, 4), np.float32) if transfer is None else np.asarray(transfer, np.float32)
+    if transfer is None:
+        transfer = np.zeros((n, 4), np.float32)
     return TransferSamples(points, np.tile(np.float32([0, 1, 0]), (n, 1)), transfer,
                            np.zeros(n, np.int32) if object_ids is None else object_ids)
 
