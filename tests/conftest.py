@@ -13,12 +13,14 @@ _USER_ASSETS = os.environ.get("PRTBENCH_ASSETS") or str(
     Path(os.environ.get("PRTBENCH_CACHE", Path.home() / ".cache" / "prtbench")) / "assets")
 
 
-@pytest.fixture(autouse=True)
-def _isolated_cache(tmp_path_factory, monkeypatch):
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_cache(tmp_path_factory):
     # One cache per session keeps tests fast (transfer, references) but never touches ~/.cache.
+    # Session scope, so that module- and class-scoped fixtures (trained networks) see it too.
     root = tmp_path_factory.getbasetemp() / "prtbench-cache"
-    monkeypatch.setenv("PRTBENCH_CACHE", str(root))
-    monkeypatch.setenv("PRTBENCH_ASSETS", _USER_ASSETS)
-    # Never append test rows to the user's ./results store.
-    monkeypatch.setenv("PRTBENCH_RESULTS", str(tmp_path_factory.getbasetemp() / "results.sqlite"))
-    yield
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("PRTBENCH_CACHE", str(root))
+        patch.setenv("PRTBENCH_ASSETS", _USER_ASSETS)
+        # Never append test rows to the user's ./results store.
+        patch.setenv("PRTBENCH_RESULTS", str(tmp_path_factory.getbasetemp() / "results.sqlite"))
+        yield
