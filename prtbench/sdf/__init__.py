@@ -18,8 +18,8 @@ from .nodes import (Box, Capsule, Cone, Cylinder, Ellipsoid, Mirror, Plane, Rota
                     SmoothUnion, Sphere, Torus, Translate, intersection, rotation_matrix,
                     subtract, union)
 from .surface import SdfSurface, as_surface
-from .trace import (MarchResult, SdfHits, SdfTracer, compute_sdf_transfer, first_hit, march,
-                    occluded)
+from .trace import (CLEARANCE, MarchResult, SdfHits, SdfTracer, compute_sdf_transfer, first_hit,
+                    march, occluded, surface_origins)
 
 
 def __getattr__(name: str):
@@ -37,7 +37,7 @@ __all__ = [
     "RoundedBox", "Scale", "SdfNode", "SmoothIntersection", "SmoothSubtraction", "SmoothUnion",
     "Sphere", "Torus", "Translate", "intersection", "rotation_matrix", "subtract", "union",
     "SdfSurface", "as_surface", "MarchResult", "SdfHits", "SdfTracer", "compute_sdf_transfer",
-    "first_hit", "march", "occluded", "marching_cubes_mesh", "sample_sdf_surface", "sdf_grid",
+    "first_hit", "march", "occluded", "surface_origins", "CLEARANCE", "marching_cubes_mesh", "sample_sdf_surface", "sdf_grid",
     "sdf_scene_objects", "split_by_material", "sdf_gbuffer", "SdfGBuffer", "GBufferPass",
     "load_sdf_program", "bind_camera", "fullscreen_vao", "evaluate_gl", "GlOcclusion",
 ]

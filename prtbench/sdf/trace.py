@@ -14,7 +14,9 @@ between the SDF and its marching-cubes mesh (and bit for bit where nothing occlu
 
 Precision and cost: with the defaults a ray hits where d < 2.5e-5·diagonal (``hit_eps``), so
 surfaces act ~``hit_eps`` thicker than they are; rays start 1e-4·diagonal off their surface
-like embree's. NumPy marches ~0.1 M rays/s on the 24-primitive car (2 shared cores); the
+like embree's, and further along the normal where the SDF grows slower than distance
+(|∇d| < 1, e.g. a fitted neural SDF) and d there is still under twice ``hit_eps``
+(:func:`surface_origins`); otherwise such a ray would count its own start as a hit. NumPy marches ~0.1 M rays/s on the 24-primitive car (2 shared cores); the
 ``"gl"`` backend (float32, llvmpipe) ~0.8 M rays/s, about embree's speed on the car's mesh.
 """
 
@@ -27,11 +29,11 @@ import numpy as np
 
 from ..cache import cached_arrays, content_key
 from ..errors import InvalidInputError
-from ..raytrace import offset_origins
+from ..raytrace import OFFSET_SCALE, offset_origins
 from .surface import MAX_STEPS, RELAXATION, SdfSurface, as_surface
 
 #: Bump when sphere tracing or the SDF transfer estimator changes (part of cache keys).
-SDF_TRANSFER_VERSION = 1
+SDF_TRANSFER_VERSION = 2  # 2: origins lifted clear of the hit shell (surface_origins)
 
 BACKENDS = ("numpy", "gl")
 
@@ -205,15 +207,53 @@ def occluded(surface: Any, origins: np.ndarray, directions: np.ndarray, *,
         Hit threshold (default ``surface.hit_eps``).
     normals : ndarray, shape (N, 3), optional
         Surface normals at ``origins``: rays starting on the surface are first moved off it
-        along them by :func:`prtbench.raytrace.offset_origins` (4·eps with the defaults), so
-        they do not hit the surface they start on.
+        along them by :func:`surface_origins`, so they do not hit the surface they start on.
     """
     sdf = as_surface(surface)
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     if normals is not None:
-        o = offset_origins(o, normals, diagonal=sdf.diagonal)
+        o = surface_origins(sdf, o, normals)
     return march(sdf, o, directions, t_max=tmax, eps=eps, max_steps=max_steps,
                  relaxation=relaxation).hit
+
+
+#: Ray origins must start where d ≥ this many ``hit_eps``.
+CLEARANCE = 2.0
+#: At most this many doublings of the offset by :func:`surface_origins`.
+MAX_LIFTS = 8
+
+
+def surface_origins(surface: Any, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Ray origins for points on the surface: off it along the normal, clear of the hit shell.
+
+    The offset is :func:`prtbench.raytrace.offset_origins`'s (1e-4·diagonal, as for meshes).
+    An exact SDF reads d = offset = 4·``hit_eps`` there. A fitted (neural) SDF may grow
+    slower than distance (|∇d| ≪ 1 where the fit is poor), and a ray starting at d < ``hit_eps``
+    would count as occluded by its own surface; such origins move further along the normal,
+    doubling the step, until d ≥ ``CLEARANCE``·``hit_eps`` (at most ``MAX_LIFTS`` times).
+
+    Parameters
+    ----------
+    surface : SdfSurface or Scene with ``sdf``
+    points, normals : ndarray, shape (N, 3)
+
+    Returns
+    -------
+    ndarray, shape (N, 3), float64
+    """
+    sdf = as_surface(surface)
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    origins = offset_origins(points, n, diagonal=sdf.diagonal)
+    unit = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    step = OFFSET_SCALE * sdf.diagonal
+    low = np.flatnonzero(sdf.evaluate(origins) < CLEARANCE * sdf.hit_eps)
+    for _ in range(MAX_LIFTS):
+        if not len(low):
+            break
+        origins[low] += unit[low] * step
+        step *= 2.0
+        low = low[sdf.evaluate(origins[low]) < CLEARANCE * sdf.hit_eps]
+    return origins
 
 
 class SdfTracer:
@@ -308,7 +348,7 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
         pattern = tr.RayPattern(len(p), m, seed)
         rotate = tr.ShRotation(bands)
         local_sh = [eval_sh(directions, bands) for directions in pattern.local]
-        origins_all = offset_origins(p, n, diagonal=surface.diagonal)
+        origins_all = surface_origins(surface, p, n)
         transfer = np.zeros((len(p), bands * bands))
         tracer = SdfTracer(surface, backend=backend)
         try:

@@ -5,6 +5,7 @@ surface samples and the sphere-traced G-buffer."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -529,3 +530,37 @@ def test_a_custom_shader_includes_the_trace_api_and_a_pass_is_reusable(tmp_path)
         target.release()
         vao.release()
         program.release()
+
+
+@dataclass(frozen=True, eq=False)
+class _Slowed(sdf.SdfNode):
+    """``child``'s distance times ``factor`` < 1: a valid bound that grows slower than distance,
+    like a fitted neural SDF where |∇d| ≪ 1."""
+
+    child: sdf.SdfNode
+    factor: float
+
+    @property
+    def children(self):
+        return (self.child,)
+
+    def _eval(self, p, need_material):
+        d, m = self.child._eval(p, need_material)
+        return d * self.factor, m
+
+    def _spec(self):
+        return {"factor": self.factor}
+
+
+def test_slow_sdf_does_not_shadow_itself():
+    # A convex sphere occludes nothing of its own upper hemisphere of directions, whatever the
+    # SDF's gradient: T_0 = ∫ Y_0 max(n·ω, 0) dω = √π/2 at its top. With |∇d| = 0.1 the usual
+    # 1e-4·diagonal start offset reads d = 0.4·hit_eps, inside the hit shell.
+    slow = _Slowed(sdf.Sphere(radius=0.5), 0.1)
+    surface = sdf.SdfSurface(slow, ((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0)), (Material(),))
+    top, up = np.array([[0.0, 0.0, 0.5]]), np.array([[0.0, 0.0, 1.0]])
+    origin = sdf.surface_origins(surface, top, up)
+    assert surface.evaluate(origin)[0] >= sdf.CLEARANCE * surface.hit_eps
+    transfer = sdf.compute_sdf_transfer(surface, top, up, bands=2, rays_per_point=256,
+                                        progress=False, use_cache=False)
+    assert transfer[0, 0] == pytest.approx(math.sqrt(math.pi) / 2, rel=1e-3)
