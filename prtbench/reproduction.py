@@ -53,6 +53,15 @@ class Reproduction:
     def cells(self, profile: str) -> list[Cell]:
         raise NotImplementedError
 
+    def measure(self, profile: str, *, results_path: Path | None = None) -> list[str]:
+        """Measurements the generic runner cannot make (e.g. per-pass timings).
+
+        A table that times things itself appends its rows to the results store at
+        ``results_path`` (None: the default store) and returns their run ids, which
+        :func:`run_table` adds to the rows of :meth:`cells`. The default measures nothing.
+        """
+        return []
+
     def format(self, frame, *, profile: str) -> tuple[list[str], list[list[Any]]]:
         """(header, rows) of the table from the results DataFrame of this sweep."""
         raise NotImplementedError
@@ -118,10 +127,12 @@ def run_table(reproduction: Reproduction, *, profile: str = "quick",
               file=sys.stderr, flush=True)
         summary = execute(job, progress=progress)
         run_ids[summary.run_id] = cell
+    own_run_ids = reproduction.measure(profile, results_path=results_path)
     frame = load(results_path)
-    frame = frame[frame["run_id"].isin(list(run_ids))].copy()
+    frame = frame[frame["run_id"].isin([*run_ids, *own_run_ids])].copy()
     for key in sorted({k for c in cells for k in c.label}):
-        frame[f"label_{key}"] = [dict(run_ids[r].label).get(key) for r in frame["run_id"]]
+        frame[f"label_{key}"] = [dict(run_ids[r].label).get(key) if r in run_ids else None
+                                 for r in frame["run_id"]]
     header, rows = reproduction.format(frame, profile=profile)
     reports_dir.mkdir(parents=True, exist_ok=True)
     md_path = reports_dir / f"table-{reproduction.name}.md"

@@ -10,7 +10,7 @@ time (GL direct vectors + embree indirect lightmaps); storage is the resident ba
 transfer matrix.
 
 The generic runner cannot time passes separately nor light with spot lights, so this table
-measures with its own harness: :meth:`DdprtTable1.cells` runs it and writes one results-store
+measures with its own harness: :meth:`DdprtTable1.measure` runs it and writes one results-store
 row per (scene, n) (``metrics`` hold the pass times), and :meth:`DdprtTable1.format` builds the
 table from those stored rows.
 """
@@ -83,11 +83,10 @@ class DdprtTable1(Reproduction):
     # -- measurement ---------------------------------------------------------------------------
 
     def cells(self, profile: str) -> list:
-        """Runs this table's own timing harness (see the module docstring); no runner cells."""
-        self._run_id = self.measure(profile)
+        """No runner cells: :meth:`measure` runs this table's own timing harness."""
         return []
 
-    def measure(self, profile: str, *, results_path=None) -> str:
+    def measure(self, profile: str, *, results_path=None) -> list[str]:
         """Time every (scene, n) and append the rows to the results store; returns the run id."""
         import methods.data_driven  # noqa: F401 - registers the method
         from methods.data_driven.evaluation import held_out, with_knobs
@@ -146,16 +145,12 @@ class DdprtTable1(Reproduction):
                     scene_params={"column": column, "label": label, "substitution": scene.substitution},
                     timing_source=times["frame"].source))
         ResultsStore(results_path).append(rows)
-        return run_id
+        self._run_id = run_id
+        return [run_id]
 
     # -- report --------------------------------------------------------------------------------
 
     def format(self, frame, *, profile: str):
-        from prtbench.results import load
-
-        if self._run_id is not None:
-            frame = load(run_id=self._run_id)
-        self._frame = frame
         columns = []  # (paper column, our rows by n or None)
         for label, name, params, column in SCENES:
             part = frame[[json.loads(p).get("column") == column if isinstance(p, str) else
@@ -215,7 +210,6 @@ class DdprtTable1(Reproduction):
         return ms, ms / float(sel["metric_ms_no_gi"].iloc[0])
 
     def markdown(self, header, rows, *, profile: str, frame) -> str:
-        frame = getattr(self, "_frame", frame)
         text = super().markdown(header, rows, profile=profile, frame=frame)
         sources = sorted(set(frame["timing_source"])) if len(frame) else []
         res = sorted({f"{w}x{h}" for w, h in zip(frame["width"], frame["height"])}) if len(frame) else []
