@@ -69,7 +69,9 @@ class Reproduction:
     def markdown(self, header: Sequence[str], rows: Sequence[Sequence[Any]], *, profile: str,
                  frame) -> str:
         def distinct(column: str) -> str:
-            values = sorted({str(v) for v in frame[column] if v not in (None, "")}) if len(frame) else []
+            # Path-reference columns are NaN on rows compared with a method: skip them.
+            values = sorted({_fmt(v) for v in frame[column] if v not in (None, "") and v == v}
+                            ) if len(frame) else []
             return ", ".join(values) or "n/a"
 
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
