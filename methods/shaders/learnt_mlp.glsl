@@ -8,8 +8,8 @@
 // array index must be a compile-time constant once the (small, constant-trip) inner loops are
 // unrolled, so the weights become immediate operands. A runtime loop over layers or a runtime
 // network index turns each mat4 read into a per-pixel gather from memory: on llvmpipe that was
-// 10-20x slower for the same network. Hence at most 15 hidden layers and 16 sub-scene networks
-// (methods/learnt/glsl.py checks both).
+// 5-10x slower for the same network (plants, k = 64: 1.5 s against 0.16 s per frame). Hence at
+// most 15 hidden layers and 16 sub-scene networks (methods/learnt/glsl.py checks both).
 #ifndef PRTBENCH_LEARNT_MLP_GLSL
 #define PRTBENCH_LEARNT_MLP_GLSL
 
