@@ -27,7 +27,10 @@ def dragon_mesh(resolution: str, *, height: float = 0.7, rotate_y_degrees: float
                       rotate_y_degrees=rotate_y_degrees, position=position)
 
 
-def _scene(name: str, variant: str, resolution: str, ground_subdivisions: int) -> Scene:
+def _scene(name: str, variant: str, resolution: str, ground_subdivisions: int, *,
+           params: dict) -> Scene:
+    # ``params`` are the builder's own keyword arguments, so that a stored row rebuilds the
+    # scene with ``get_scene(name, **params)`` (dragon-lo fixes the resolution).
     check_variant(variant)
     objects = [
         SceneObject("ground", grid_plane(4.0, ground_subdivisions),
@@ -36,7 +39,7 @@ def _scene(name: str, variant: str, resolution: str, ground_subdivisions: int) -
                     material(variant, "dragon", (0.75, 0.55, 0.25), ks=0.4, shininess=96.0)),
     ]
     return assemble(name, objects, variant=variant,
-                    params={"resolution": resolution, "ground_subdivisions": ground_subdivisions},
+                    params=params,
                     center=(0.0, 0.3, 0.0), orbit_radius=2.0, orbit_height=0.8,
                     default_light="sky", exposure=0.7,
                     substitution="" if resolution == "full" else
@@ -57,10 +60,12 @@ def build(*, variant: str = "diffuse", resolution: str = "full", ground_subdivis
     ground_subdivisions : int
         Ground quads per side k.
     """
-    return _scene("dragon", variant, resolution, ground_subdivisions)
+    return _scene("dragon", variant, resolution, ground_subdivisions,
+                  params={"resolution": resolution, "ground_subdivisions": ground_subdivisions})
 
 
 @register_scene("dragon-lo")
 def build_lo(*, variant: str = "diffuse", ground_subdivisions: int = 1) -> Scene:
     """The decimated dragon ``res3`` (46k triangles once cleaned) on a 2·k²-triangle ground."""
-    return _scene("dragon-lo", variant, "res3", ground_subdivisions)
+    return _scene("dragon-lo", variant, "res3", ground_subdivisions,
+                  params={"ground_subdivisions": ground_subdivisions})
