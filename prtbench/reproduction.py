@@ -79,7 +79,10 @@ class Reproduction:
                  f"Timing: {distinct('timing_source')} (`timer-query` = GL timer queries; "
                  f"`wall+finish` = host clock around draw + glFinish, used on software "
                  f"rasterisers). Machine: {distinct('device')}. Git: {distinct('git_sha')}.", ""]
-        path_rows = frame[frame["reference_kind"] == "path"] if len(frame) else frame
+        # Rows that name the path reference but compared nothing with it (own-harness timings)
+        # carry no noise estimate.
+        path_rows = frame[(frame["reference_kind"] == "path") & frame["reference_noise"].notna()
+                          ] if len(frame) else frame
         if len(path_rows):
             noise = float(path_rows["reference_noise"].max())
             ceiling = float("inf") if noise <= 0 else -20 * math.log10(noise)
