@@ -126,12 +126,15 @@ PROFILE_OVERRIDES = {
 # --- training data and model -------------------------------------------------------------------
 
 def geometry_key(scene) -> str:
-    """Hash of what transfer and samples depend on: the SDF tree, its bounds and the
-    marching-cubes mesh the samples are drawn on (no materials)."""
+    """Hash of what transfer and samples depend on: the SDF tree, its bounds, the
+    marching-cubes mesh the samples are drawn on (no materials) and the version of the SDF
+    transfer code (its cache key has it; the training data cached here must follow it)."""
     from methods.learnt.data import geometry_key as mesh_key
+    from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
     sdf = scene.sdf
-    return content_key("learnt-sdf-geometry", sdf.root.spec(), list(sdf.bounds), mesh_key(scene))
+    return content_key("learnt-sdf-geometry", SDF_TRANSFER_VERSION, sdf.root.spec(),
+                       list(sdf.bounds), mesh_key(scene))
 
 
 def surface_transfer(scene, *, points: int, rays_per_point: int, bands: int, seed: int,

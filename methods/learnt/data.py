@@ -51,8 +51,11 @@ class TransferSamples:
 
 
 def geometry_key(scene) -> str:
-    """Hash of what transfer depends on: object names, positions, faces, normals (no materials)."""
-    return content_key("learnt-geometry",
+    """Hash of what transfer depends on: object names, positions, faces, normals (no materials)
+    and the version of the core transfer code, so a fix there retires cached training data."""
+    from prtbench.transfer import TRANSFER_VERSION
+
+    return content_key("learnt-geometry", TRANSFER_VERSION,
                        [[o.name, o.mesh.positions, o.mesh.faces, o.mesh.normals]
                         for o in scene.objects])
 

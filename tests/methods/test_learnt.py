@@ -248,3 +248,15 @@ def test_heldout_vertices_are_never_training_points():
         distance, _ = cKDTree(train.points).query(held.points)
         assert distance.min() > 1e-5
         assert len(held) == 300 and held.transfer.shape == (300, 4)
+
+
+def test_cached_training_data_follows_the_transfer_code_version(monkeypatch):
+    # Training points and networks are cached by geometry; a new core TRANSFER_VERSION must
+    # give them new keys too, or a transfer fix would keep serving networks fitted to the bug.
+    import prtbench.transfer
+    from methods.learnt.data import geometry_key
+
+    scene = get_scene("sphere-over-plane", radius=0.5, height=1.0)
+    before = geometry_key(scene)
+    monkeypatch.setattr(prtbench.transfer, "TRANSFER_VERSION", prtbench.transfer.TRANSFER_VERSION + 1)
+    assert geometry_key(scene) != before

@@ -170,3 +170,14 @@ def test_smoke_through_the_runner_on_sdf_rabbit():
     assert summary.memory_bytes > 0 and summary.views[0].frame_ms > 0
     rows = load(method="learnt-sdf")
     assert len(rows) >= 1 and rows["run_id"].iloc[-1] == summary.run_id
+
+
+def test_cached_training_data_follows_the_sdf_transfer_code_version(monkeypatch):
+    # A fix in SDF transfer (a new SDF_TRANSFER_VERSION) must retire the cached training data
+    # and networks built on the old transfer, not only the transfer cache itself.
+    import prtbench.sdf.trace as sdf_trace
+
+    scene = _sdf_scene(ground=False)
+    before = learnt_sdf.geometry_key(scene)
+    monkeypatch.setattr(sdf_trace, "SDF_TRANSFER_VERSION", sdf_trace.SDF_TRANSFER_VERSION + 1)
+    assert learnt_sdf.geometry_key(scene) != before
