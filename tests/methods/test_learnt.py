@@ -258,5 +258,6 @@ def test_cached_training_data_follows_the_transfer_code_version(monkeypatch):
 
     scene = get_scene("sphere-over-plane", radius=0.5, height=1.0)
     before = geometry_key(scene)
-    monkeypatch.setattr(prtbench.transfer, "TRANSFER_VERSION", prtbench.transfer.TRANSFER_VERSION + 1)
+    version = prtbench.transfer.TRANSFER_VERSION
+    monkeypatch.setattr(prtbench.transfer, "TRANSFER_VERSION", version + 1)
     assert geometry_key(scene) != before
