@@ -40,6 +40,7 @@ from prtbench.config import knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_method
 from prtbench.scene import Texture
+from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
 from methods.learnt.config import LearntConfig
 
@@ -130,10 +131,10 @@ def geometry_key(scene) -> str:
     marching-cubes mesh the samples are drawn on (no materials) and the version of the SDF
     transfer code (its cache key has it; the training data cached here must follow it)."""
     from methods.learnt.data import geometry_key as mesh_key
-    from prtbench.sdf.trace import SDF_TRANSFER_VERSION
+    from prtbench.sdf import trace
 
     sdf = scene.sdf
-    return content_key("learnt-sdf-geometry", SDF_TRANSFER_VERSION, sdf.root.spec(),
+    return content_key("learnt-sdf-geometry", trace.SDF_TRANSFER_VERSION, sdf.root.spec(),
                        list(sdf.bounds), mesh_key(scene))
 
 
@@ -242,7 +243,8 @@ class LearntSdf(Method):
     """Learnt transfer on SDF surfaces, sphere-traced in GLSL (or a torch G-buffer path)."""
 
     Config = LearntSdfConfig
-    precompute_version = "1"
+    # The artifact holds a network fitted to SDF transfer, so it follows that code's version.
+    precompute_version = f"1+sdf-transfer-{SDF_TRANSFER_VERSION}"
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
     profile_overrides = PROFILE_OVERRIDES

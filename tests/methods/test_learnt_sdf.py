@@ -177,7 +177,10 @@ def test_cached_training_data_follows_the_sdf_transfer_code_version(monkeypatch)
     # and networks built on the old transfer, not only the transfer cache itself.
     import prtbench.sdf.trace as sdf_trace
 
+    # The method's artifact (network + meta) is keyed by precompute_version, which names it.
+    version = sdf_trace.SDF_TRANSFER_VERSION
+    assert learnt_sdf.LearntSdf.precompute_version.endswith(f"sdf-transfer-{version}")
     scene = _sdf_scene(ground=False)
     before = learnt_sdf.geometry_key(scene)
-    monkeypatch.setattr(sdf_trace, "SDF_TRANSFER_VERSION", sdf_trace.SDF_TRANSFER_VERSION + 1)
+    monkeypatch.setattr(sdf_trace, "SDF_TRANSFER_VERSION", version + 1)
     assert learnt_sdf.geometry_key(scene) != before
