@@ -14,8 +14,12 @@ From N examples (direct vector x_k at the measurement points, indirect lightmap 
 
 At run time y = ‖x‖ μ + U (M x). Options: ``gamma`` ≠ 1 does all of this on v^(1/γ) and raises
 the reconstruction to the power γ (§5.3); the mono-channel layout (default, §5.2) treats the
-three colour channels of a configuration as three examples with one shared basis and applies
-M per channel, the interleaved layout keeps RGB together in longer vectors.
+three colour channels of a configuration as three examples with one shared basis and fits one
+transfer matrix per channel (§5.2, Fig. 5: "three different transfer matrices"), the interleaved
+layout keeps RGB together in longer vectors with one matrix. Per-channel matrices matter in a
+coloured scene: the same direct light on white surfaces gives red indirect light on a red wall
+but green on a green one, which one shared matrix cannot map (cornell, held-out lights, n = 64,
+λ = 10⁻³: 1.34× → 1.26× the projection RMSE for sky rotations, 2.57× → 2.36× for spots).
 """
 
 from __future__ import annotations
@@ -44,8 +48,9 @@ class Basis:
         Mean normalised lightmap (Y = texels, or 3·texels interleaved).
     vectors : ndarray, shape (Y, n − 1)
         Orthonormal basis columns (zero columns where the data had fewer dimensions).
-    transfer : ndarray, shape (n − 1, X)
-        M (X = measurement points, or 3·points interleaved).
+    transfer : ndarray, shape (C, n − 1, X)
+        M per channel group (C = 3 for the mono layout's R, G, B, 1 interleaved; X =
+        measurement points, or 3·points interleaved).
     eigenvalues : ndarray, shape (N,)
         All Gram eigenvalues, descending (their decay is the paper's Fig. 3).
     examples : int
@@ -72,13 +77,28 @@ class Basis:
         return np.concatenate([self.mean[:, None], self.vectors], axis=1)
 
     def coefficients(self, x: np.ndarray) -> np.ndarray:
-        """Weights (n, E) of the elements for direct vectors ``x`` (X, E) (already encoded)."""
+        """Weights (n, E) of the elements for direct vectors ``x`` (X, E) (already encoded).
+
+        With C channel matrices, column e is channel e mod C (the order of :func:`to_examples`).
+        """
         x = np.asarray(x, dtype=np.float64)
-        return np.concatenate([np.linalg.norm(x, axis=0)[None], self.transfer @ x], axis=0)
+        channel = channel_of_columns(x.shape[1], len(self.transfer))
+        weights = np.empty((self.transfer.shape[1], x.shape[1]))
+        for c, matrix in enumerate(self.transfer):
+            weights[:, channel == c] = matrix @ x[:, channel == c]
+        return np.concatenate([np.linalg.norm(x, axis=0)[None], weights], axis=0)
 
     def reconstruct(self, weights: np.ndarray) -> np.ndarray:
         """Encoded lightmaps (Y, E) from element weights (n, E)."""
         return self.elements() @ np.asarray(weights, dtype=np.float64)
+
+
+def channel_of_columns(examples: int, channels: int) -> np.ndarray:
+    """Channel (E,) of each column of (example, channel)-ordered data with ``channels`` channels."""
+    if channels < 1 or examples % channels:
+        raise InvalidInputError(f"{examples} example columns for {channels} channel transfer "
+                                "matrices; accepted: a multiple of the channel count")
+    return np.arange(examples) % channels
 
 
 def encode(values: np.ndarray, gamma: float) -> np.ndarray:
@@ -122,7 +142,7 @@ def to_examples(direct: np.ndarray, indirect: np.ndarray, *, layout: str,
 
 
 def fit(x: np.ndarray, y: np.ndarray, *, count: int, ridge: float, layout: str = "mono",
-        gamma: float = 1.0) -> Basis:
+        gamma: float = 1.0, channels: int = 1) -> Basis:
     """Fit the basis and transfer matrix to encoded examples.
 
     Parameters
@@ -135,6 +155,9 @@ def fit(x: np.ndarray, y: np.ndarray, *, count: int, ridge: float, layout: str =
         n basis elements including the mean (≥ 1).
     ridge : float
         Tikhonov λ ≥ 0 (0: the plain pseudo-inverse).
+    channels : int
+        Transfer matrices C: columns are (example, channel) ordered and channel c's columns
+        alone fit matrix c (3 for the mono layout, 1: one matrix for every column).
     """
     if count < 1:
         raise InvalidInputError(f"basis count {count}; accepted: >= 1 (the mean counts)")
@@ -144,6 +167,7 @@ def fit(x: np.ndarray, y: np.ndarray, *, count: int, ridge: float, layout: str =
     y = np.asarray(y, dtype=np.float64)
     if x.shape[1] != y.shape[1]:
         raise InvalidInputError(f"{x.shape[1]} direct but {y.shape[1]} indirect examples")
+    channel = channel_of_columns(x.shape[1], channels)
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise InvalidInputError("dataset contains NaN/Inf")
     norms = np.linalg.norm(x, axis=0)
@@ -151,8 +175,8 @@ def fit(x: np.ndarray, y: np.ndarray, *, count: int, ridge: float, layout: str =
     valid &= norms > 0
     k_max = count - 1
     if not valid.any():
-        return Basis(np.zeros(len(y)), np.zeros((len(y), k_max)), np.zeros((k_max, len(x))),
-                     np.zeros(0), 0, layout, gamma)
+        return Basis(np.zeros(len(y)), np.zeros((len(y), k_max)),
+                     np.zeros((channels, k_max, len(x))), np.zeros(0), 0, layout, gamma)
     xn = x[:, valid] / norms[valid]
     yn = y[:, valid] / norms[valid]
     mean = yn.mean(axis=1)
@@ -164,13 +188,16 @@ def fit(x: np.ndarray, y: np.ndarray, *, count: int, ridge: float, layout: str =
     usable = int(np.sum(evals > EIGEN_FLOOR * max(float(evals[0]), 1e-300))) if evals[0] > 0 else 0
     k = min(k_max, usable)
     vectors = np.zeros((len(y), k_max))
-    transfer = np.zeros((k_max, len(x)))
+    transfer = np.zeros((channels, k_max, len(x)))
     if k > 0:
         u = centred @ (evecs[:, :k] / np.sqrt(evals[:k]))
         vectors[:, :k] = u
         coeffs = u.T @ centred                                    # C (k, E)
-        regularised = xn.T @ xn + ridge * np.eye(xn.shape[1])     # D̃ᵀD̃ + λI
-        transfer[:k] = coeffs @ np.linalg.pinv(regularised, hermitian=True) @ xn.T
+        for c in range(channels):
+            mine = channel[valid] == c
+            d = xn[:, mine]
+            regularised = d.T @ d + ridge * np.eye(d.shape[1])    # D̃ᵀD̃ + λI
+            transfer[c, :k] = coeffs[:, mine] @ np.linalg.pinv(regularised, hermitian=True) @ d.T
     return Basis(mean, vectors, transfer, evals, int(valid.sum()), layout, gamma)
 
 

@@ -45,8 +45,9 @@ class DataDrivenConfig:
                         low=0.0, high=1e6)
     gamma: float = knob(1.0, "Transfer in gamma space: values^(1/gamma) (paper §5.3); 1 = linear.",
                         low=0.1, high=10.0)
-    channels: str = knob("mono", "mono: one basis shared by R, G, B with a transfer per channel "
-                         "(paper default); interleaved: RGB vectors.", choices=LAYOUTS)
+    channels: str = knob("mono", "mono: one basis shared by R, G, B with a transfer matrix per "
+                         "channel (paper default); interleaved: RGB vectors, one matrix.",
+                         choices=LAYOUTS)
     light_family: str = knob("env-rotations", "Lighting configurations of the dataset.",
                              choices=FAMILIES)
     environment: str = knob("", "Environment map rotated by the env-rotations family "
@@ -106,7 +107,8 @@ def fit_basis(dataset, config: DataDrivenConfig) -> Basis:
     """The basis and transfer matrix of ``config`` on a dataset."""
     x, y = to_examples(dataset.direct, dataset.indirect, layout=config.channels)
     return fit(encode(x, config.gamma), encode(y, config.gamma), count=config.basis,
-               ridge=config.ridge, layout=config.channels, gamma=config.gamma)
+               ridge=config.ridge, layout=config.channels, gamma=config.gamma,
+               channels=3 if config.channels == "mono" else 1)
 
 
 @register_method("data-driven")
@@ -114,7 +116,7 @@ class DataDrivenPRT(Method):
     """Belcour et al. 2022: direct-to-indirect transfer through a learnt lightmap basis."""
 
     Config = DataDrivenConfig
-    precompute_version = "2"
+    precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
     summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
                "lightmap basis driven by a fake G-buffer")
     profile_overrides = {

@@ -2,11 +2,16 @@
 // Matrix transfer u = M x (Belcour et al. 2022 eq. 10, §5.2): one output texel per group of
 // four basis elements (and per colour channel for the mono-channel basis). Element 0 is the
 // mean, whose coefficient is the norm of the direct vector (§4.2); element e > 0 uses row e-1
-// of M (texture row e-1, one column per vector entry).
+// of M (one column per vector entry). The mono-channel basis has one M per colour channel
+// (the paper's "three different transfer matrices"), stacked: channel c's row e-1 is texture
+// row c * matrix_rows + e-1.
 uniform sampler2D direct_vector;   // (P, 1): rgb of each measurement point
-uniform sampler2D transfer_matrix; // (P or 3P, n - 1), r channel
+uniform sampler2D transfer_matrix; // (3P, n - 1) interleaved or (P, 3 (n - 1)) mono, r channel
 uniform int n_points;
 uniform int n_basis;
+#if !MULTI_CHANNEL
+uniform int matrix_rows;           // n - 1: rows of one channel's M
+#endif
 out vec4 coefficients;
 
 float to_transfer_space(float v) {
@@ -42,7 +47,7 @@ void main() {
         for (int k = 0; k < 4; ++k) {
             int e = 4 * group + k;
             if (e >= 1 && e < n_basis)
-                acc[k] += texelFetch(transfer_matrix, ivec2(i, e - 1), 0).r * v;
+                acc[k] += texelFetch(transfer_matrix, ivec2(i, channel * matrix_rows + e - 1), 0).r * v;
         }
     }
 #endif
