@@ -48,6 +48,9 @@ class DataDrivenConfig:
     channels: str = knob("mono", "mono: one basis shared by R, G, B with a transfer matrix per "
                          "channel (paper default); interleaved: RGB vectors, one matrix.",
                          choices=LAYOUTS)
+    channel_transfer: bool = knob(True, "Mono layout: one transfer matrix per colour channel (paper "
+                                  "§5.2); false: one matrix shared by R, G, B, which pools 3x the "
+                                  "examples but cannot colour indirect light per channel.")
     light_family: str = knob("env-rotations", "Lighting configurations of the dataset.",
                              choices=FAMILIES)
     environment: str = knob("", "Environment map rotated by the env-rotations family "
@@ -108,7 +111,7 @@ def fit_basis(dataset, config: DataDrivenConfig) -> Basis:
     x, y = to_examples(dataset.direct, dataset.indirect, layout=config.channels)
     return fit(encode(x, config.gamma), encode(y, config.gamma), count=config.basis,
                ridge=config.ridge, layout=config.channels, gamma=config.gamma,
-               channels=3 if config.channels == "mono" else 1)
+               channels=3 if config.channels == "mono" and config.channel_transfer else 1)
 
 
 @register_method("data-driven")

@@ -95,9 +95,10 @@ class Transfer:
                    "GAMMA": float(gamma)}
         self.program = gl.load_program(ctx, "data_driven_fullscreen.vert", "data_driven_transfer.frag",
                                        defines=defines)
-        # (C, n - 1, X) -> one (X wide, C·(n - 1) high) texture: channel c's rows follow c - 1's.
+        # (C, n - 1, X) -> one (X wide, C·(n - 1) high) texture: channel c's rows follow c - 1's
+        # (C = 3); a single matrix (C = 1) serves every channel.
         m = np.asarray(matrix, np.float32)
-        self.matrix_rows = int(m.shape[1])
+        self.channel_stride = int(m.shape[1]) if m.shape[0] > 1 else 0
         m = m.reshape(-1, m.shape[2])
         if m.size == 0:  # only the mean: a dummy 1x1 texture keeps the sampler valid
             m = np.zeros((1, 1), np.float32)
@@ -120,8 +121,8 @@ class Transfer:
         self.program["transfer_matrix"].value = 1
         self.program["n_points"].value = self.n_points
         self.program["n_basis"].value = self.n_basis
-        if "matrix_rows" in self.program:  # compiled out when only the mean is blended
-            self.program["matrix_rows"].value = self.matrix_rows
+        if "channel_stride" in self.program:  # compiled out when only the mean is blended
+            self.program["channel_stride"].value = self.channel_stride
         self.vao.render(gl.moderngl.TRIANGLES, vertices=3)
 
     def read(self) -> np.ndarray:

@@ -4,13 +4,13 @@
 // mean, whose coefficient is the norm of the direct vector (§4.2); element e > 0 uses row e-1
 // of M (one column per vector entry). The mono-channel basis has one M per colour channel
 // (the paper's "three different transfer matrices"), stacked: channel c's row e-1 is texture
-// row c * matrix_rows + e-1.
+// row c * channel_stride + e-1 (stride n - 1, or 0 when one matrix serves all channels).
 uniform sampler2D direct_vector;   // (P, 1): rgb of each measurement point
 uniform sampler2D transfer_matrix; // (3P, n - 1) interleaved or (P, 3 (n - 1)) mono, r channel
 uniform int n_points;
 uniform int n_basis;
 #if !MULTI_CHANNEL
-uniform int matrix_rows;           // n - 1: rows of one channel's M
+uniform int channel_stride;        // rows between channels' matrices: n - 1, or 0 if shared
 #endif
 out vec4 coefficients;
 
@@ -47,7 +47,7 @@ void main() {
         for (int k = 0; k < 4; ++k) {
             int e = 4 * group + k;
             if (e >= 1 && e < n_basis)
-                acc[k] += texelFetch(transfer_matrix, ivec2(i, channel * matrix_rows + e - 1), 0).r * v;
+                acc[k] += texelFetch(transfer_matrix, ivec2(i, channel * channel_stride + e - 1), 0).r * v;
         }
     }
 #endif

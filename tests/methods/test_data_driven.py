@@ -353,8 +353,9 @@ def test_gl_transfer_and_blend_match_numpy(spot_artifact):
     assert close.mean() > 0.95, close.mean()  # pixels straddling chart borders may differ
 
 
-@pytest.mark.parametrize("channels,gamma", [("interleaved", 1.0), ("mono", 2.2)])
-def test_gl_interleaved_and_gamma_paths_match_numpy(spot_artifact, channels, gamma):
+@pytest.mark.parametrize("channels,gamma,per_channel", [("interleaved", 1.0, True),
+                                                       ("mono", 2.2, True), ("mono", 1.0, False)])
+def test_gl_interleaved_and_gamma_paths_match_numpy(spot_artifact, channels, gamma, per_channel):
     import dataclasses
 
     from methods.data_driven.basis import encode, predict, to_examples
@@ -363,11 +364,13 @@ def test_gl_interleaved_and_gamma_paths_match_numpy(spot_artifact, channels, gam
     from prtbench.raytrace import Tracer
 
     scene, cls, base, _ = spot_artifact
-    config = dataclasses.replace(base, channels=channels, gamma=gamma, basis=8, ridge=0.1)
+    config = dataclasses.replace(base, channels=channels, gamma=gamma, basis=8, ridge=0.1,
+                                 channel_transfer=per_channel)
     artifact = load_or_precompute(cls, scene, config, progress=False)
     dataset = build_dataset(scene, config)
     assert dataset.cache_hit  # layout, gamma, n and λ do not change the dataset
     fitted = fit_basis(dataset, config)
+    assert len(fitted.transfer) == (3 if channels == "mono" and per_channel else 1)
     light = dataset.lights[1]
     renderer = cls.renderer(scene, artifact, config, width=64, height=48)
     try:
