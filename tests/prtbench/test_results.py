@@ -121,8 +121,8 @@ def _open_store(path: str, barrier) -> None:
 
 def test_processes_racing_to_create_a_store_all_succeed(tmp_path):
     # Switching a new file to WAL fails at once with "database is locked" while another
-    # process does the same (the busy timeout does not apply): without the retry, 5 of 40
-    # races of 8 processes had a failure, so 10 races catch it with probability ~0.74.
+    # process does the same (the busy timeout does not apply). Without the retry this test
+    # failed 3 of 3 runs (a looser race of 8 processes failed 5 times in 40).
     fork = multiprocessing.get_context("fork")
     for trial in range(10):
         path = str(tmp_path / f"race{trial}.sqlite")
