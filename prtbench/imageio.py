@@ -8,8 +8,6 @@ All writes are atomic (temporary file, then rename).
 from __future__ import annotations
 
 import re
-import zlib
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -145,29 +143,52 @@ def display(hdr: np.ndarray, *, exposure: float = 1.0) -> np.ndarray:
     return np.clip(linear_to_srgb(np.asarray(hdr, np.float64) * exposure), 0.0, 1.0).astype(np.float32)
 
 
-def write_png(path: str | Path, image: np.ndarray) -> None:
-    """Atomically write a [0, 1] float (H, W, 3) or (H, W) image as an 8-bit PNG."""
+def png_pixels(image: np.ndarray) -> np.ndarray:
+    """The 8-bit pixels :func:`write_png` stores for a [0, 1] float image.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), (H, W, 4) or (H, W)
+        Display values; clipped to [0, 1], grey repeated to RGB, alpha dropped.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), uint8
+        ``round(255 · clip(image, 0, 1))`` with NumPy's round-half-to-even.
+    """
     img = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=-1)
-    rgb = np.round(img[..., :3] * 255.0).astype(np.uint8)
-    h, w, _ = rgb.shape
-    raw = b"".join(b"\x00" + rgb[y].tobytes() for y in range(h))
+    if img.ndim != 3 or img.shape[2] < 3:
+        raise InvalidInputError(f"write_png expects (H, W), (H, W, 3) or (H, W, 4), got {img.shape}")
+    return np.ascontiguousarray(np.round(img[..., :3] * 255.0).astype(np.uint8))
 
-    def chunk(tag: bytes, body: bytes) -> bytes:
-        return struct.pack(">I", len(body)) + tag + body + struct.pack(">I", zlib.crc32(tag + body))
 
-    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-           + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+def write_png(path: str | Path, image: np.ndarray) -> None:
+    """Atomically write a [0, 1] float (H, W, 3) or (H, W) image as an 8-bit RGB PNG.
+
+    The pixels are :func:`png_pixels` of ``image``; Pillow encodes them.
+    """
+    from PIL import Image
+
+    pixels = Image.fromarray(png_pixels(image))
     with atomic_path(Path(path)) as tmp:
-        tmp.write_bytes(png)
+        pixels.save(tmp, format="PNG")
 
 
 def read_png(path: str | Path) -> np.ndarray:
-    """Read a PNG as float32 [0, 1] (H, W, 3) (uses scikit-image)."""
-    from skimage.io import imread
+    """Read an 8-bit PNG as float32 [0, 1] (H, W, 3): grey is repeated, alpha dropped.
 
-    img = imread(str(path)).astype(np.float32) / 255.0
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=-1)
-    return img[..., :3]
+    Raises
+    ------
+    InvalidInputError
+        If the file is missing or not a readable image.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as png:
+            rgb = np.asarray(png.convert("RGB"))
+    except (OSError, UnidentifiedImageError) as exc:
+        raise InvalidInputError(f"cannot read PNG '{path}': {exc}") from None
+    return rgb.astype(np.float32) / 255.0
