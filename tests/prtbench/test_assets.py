@@ -5,6 +5,8 @@ from __future__ import annotations
 import hashlib
 import io
 import os
+import shutil
+import subprocess
 import tarfile
 import zipfile
 from pathlib import Path
@@ -54,14 +56,22 @@ def _tar_bytes(files: dict[str, bytes], mode: str = "w:gz") -> bytes:
     return buffer.getvalue()
 
 
-def _deb_bytes(data_tar: bytes) -> bytes:
-    def member(name: str, data: bytes) -> bytes:
-        header = f"{name:<16}{0:<12}{0:<6}{0:<6}{100644:<8}{len(data):<10}`\n".encode()
-        return header + data + (b"\n" if len(data) % 2 else b"")
-
-    return (b"!<arch>\n" + member("debian-binary", b"2.0\n")
-            + member("control.tar.xz", _tar_bytes({"control": b"x"}, "w:xz"))
-            + member("data.tar.xz", data_tar))
+def _deb_bytes(files: dict[str, bytes], tmp_path: Path) -> bytes:
+    """A real binary package holding ``files``, built with ``dpkg-deb --build``."""
+    if shutil.which("dpkg-deb") is None:
+        pytest.skip("dpkg-deb (Debian's dpkg) is not installed")
+    root = tmp_path / "debroot"
+    (root / "DEBIAN").mkdir(parents=True)
+    (root / "DEBIAN" / "control").write_text(
+        "Package: prtbench-fake\nVersion: 1.0\nArchitecture: all\n"
+        "Maintainer: prtbench tests <tests@invalid>\nDescription: test package\n")
+    for name, data in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_bytes(data)
+    deb = tmp_path / "fake.deb"
+    subprocess.run(["dpkg-deb", "--root-owner-group", "--build", str(root), str(deb)],
+                   check=True, capture_output=True)
+    return deb.read_bytes()
 
 
 def _zip_bytes(files: dict[str, bytes]) -> bytes:
@@ -135,13 +145,64 @@ def test_fetch_missing_member_leaves_nothing(fake_registry):
     assert list((assets.cache_root() / "assets").iterdir()) == []
 
 
-def test_fetch_deb_with_nested_tarball(fake_registry):
+def _cgal_deb(tmp_path, *, skip: str | None = None) -> bytes:
     spec = assets.ASSETS["cgal-meshes"]
-    inner = _tar_bytes({f"data/meshes/{stored}": stored.encode() for stored, _ in spec.members})
-    data = _tar_bytes({"./usr/share/doc/libcgal-dev/data.tar.gz": inner}, "w:xz")
-    fake_registry(spec, "libcgal-demo_5.5.1-2_all.deb", _deb_bytes(data))
+    inner = _tar_bytes({f"data/meshes/{stored}": stored.encode()
+                        for stored, _ in spec.members if stored != skip})
+    return _deb_bytes({"usr/share/doc/libcgal-dev/data.tar.gz": inner,
+                       "usr/share/doc/libcgal-demo/copyright": b"c"}, tmp_path)
+
+
+def test_fetch_deb_with_nested_tarball(fake_registry, tmp_path):
+    spec = assets.ASSETS["cgal-meshes"]
+    fake_registry(spec, "libcgal-demo_5.5.1-2_all.deb", _cgal_deb(tmp_path))
     fetch("cgal-meshes", progress=False)
-    assert asset_path("cgal-meshes", "lion-head.off").read_bytes() == b"lion-head.off"
+    for stored, _ in spec.members:
+        assert asset_path("cgal-meshes", stored).read_bytes() == stored.encode()
+    # Only the members and the marker are kept; the unpacked package went with the temp dir.
+    kept = sorted(p.name for p in assets.asset_dir("cgal-meshes").iterdir())
+    assert kept == sorted([assets.MARKER, *(s for s, _ in spec.members)])
+    assert [p.name for p in (assets.cache_root() / "assets").iterdir()] == ["cgal-meshes"]
+
+
+def test_fetch_deb_missing_nested_member_leaves_nothing(fake_registry, tmp_path):
+    spec = assets.ASSETS["cgal-meshes"]
+    fake_registry(spec, "libcgal-demo_5.5.1-2_all.deb", _cgal_deb(tmp_path, skip="bunny00.off"))
+    with pytest.raises(PrtbenchError, match="data.tar.gz in libcgal-demo_5.5.1-2_all.deb has no "
+                                            "member 'data/meshes/bunny00.off'"):
+        fetch("cgal-meshes", progress=False)
+    assert not is_fetched("cgal-meshes")
+    assert list((assets.cache_root() / "assets").iterdir()) == []
+
+
+def test_fetch_deb_without_the_outer_member(fake_registry, tmp_path):
+    fake_registry(assets.ASSETS["cgal-meshes"], "libcgal-demo_5.5.1-2_all.deb",
+                  _deb_bytes({"usr/share/doc/other/file": b"x"}, tmp_path))
+    with pytest.raises(PrtbenchError, match="no member 'usr/share/doc/libcgal-dev/data.tar.gz'"):
+        fetch("cgal-meshes", progress=False)
+    assert list((assets.cache_root() / "assets").iterdir()) == []
+
+
+def test_fetch_deb_without_dpkg_deb_names_the_tool(fake_registry, tmp_path, monkeypatch):
+    fake_registry(assets.ASSETS["cgal-meshes"], "libcgal-demo_5.5.1-2_all.deb", _cgal_deb(tmp_path))
+    empty = tmp_path / "no-tools"
+    empty.mkdir()
+    monkeypatch.setenv("PATH", str(empty))
+    with pytest.raises(PrtbenchError, match="'dpkg-deb' is not installed") as info:
+        fetch("cgal-meshes", progress=False)
+    assert "\n" not in str(info.value)
+    assert list((assets.cache_root() / "assets").iterdir()) == []
+
+
+def test_fetch_corrupt_deb_is_one_line(fake_registry, tmp_path):
+    if shutil.which("dpkg-deb") is None:
+        pytest.skip("dpkg-deb (Debian's dpkg) is not installed")
+    fake_registry(assets.ASSETS["cgal-meshes"], "libcgal-demo_5.5.1-2_all.deb",
+                  b"!<arch>\nnot really a package")
+    with pytest.raises(PrtbenchError, match=r"`dpkg-deb -x .*` failed \(exit \d+\)") as info:
+        fetch("cgal-meshes", progress=False)
+    assert "\n" not in str(info.value)
+    assert list((assets.cache_root() / "assets").iterdir()) == []
 
 
 def test_fetch_wheel(fake_registry):
