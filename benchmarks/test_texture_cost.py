@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
+from methods import SHADER_DIR
 from methods._raster import clip_planes
 from methods.texture.atlas import AtlasMesh
 from prtbench import gl
@@ -35,7 +36,8 @@ class PlainTexturedDiffuse:
     def __init__(self, scene, artifact, *, width: int, height: int):
         self.scene, self.width, self.height = scene, width, height
         self.ctx = ctx = gl.create_context()
-        self.program = gl.load_program(ctx, "texture_baseline.vert", "texture_baseline.frag")
+        self.program = gl.load_program(ctx, "texture_baseline.vert", "texture_baseline.frag",
+                                       search_path=[SHADER_DIR])
         res = int(artifact.meta["texture_resolution"])
         atlas = AtlasMesh.from_arrays(artifact.arrays, resolution=res,
                                       sets=int(artifact.meta["texture_sets"]))

@@ -9,6 +9,8 @@ import numpy as np
 from prtbench import gl
 from prtbench.method import FrameTimes, Renderer
 
+from . import SHADER_DIR
+
 
 def kd_per_vertex(scene) -> np.ndarray:
     """(V, 3) float32 constant diffuse albedo of each vertex's object, merged order."""
@@ -38,7 +40,8 @@ class RasterRenderer(Renderer):
         self.scene, self.width, self.height = scene, width, height
         self.ctx = gl.create_context()
         self.renderer_string = gl.renderer_string(self.ctx)
-        self.program = gl.load_program(self.ctx, vertex_shader, fragment_shader, defines=defines)
+        self.program = gl.load_program(self.ctx, vertex_shader, fragment_shader, defines=defines,
+                                       search_path=[SHADER_DIR])
         positions, normals, faces, _ = scene.merged()
         attributes = {"normal": normals, "kd": kd_per_vertex(scene), **(extra_attributes or {})}
         self.vao = gl.upload_mesh(self.ctx, self.program, positions, faces, attributes=attributes)

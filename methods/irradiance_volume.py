@@ -41,6 +41,7 @@ from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.sh import clamped_cosine_zonal, eval_sh, tpfl_matrix
 
+from . import SHADER_DIR
 from ._raster import RasterRenderer, clip_planes
 
 #: Rays per embree call while tracing probes (bounds the temporary arrays to ~100 MB).
@@ -257,7 +258,8 @@ class IrradianceVolumeRenderer(RasterRenderer):
                          defines={"SH_BANDS": n, "GRID_N": res})
         self.depth_program = gl.load_program(
             self.ctx, "irradiance_volume.vert", "irradiance_volume.frag",
-            defines={"SH_BANDS": n, "GRID_N": res, "DEPTH_ONLY": 1})
+            defines={"SH_BANDS": n, "GRID_N": res, "DEPTH_ONLY": 1},
+            search_path=[SHADER_DIR])
         positions, _, faces, _ = scene.merged()
         self.depth_vao = gl.upload_mesh(self.ctx, self.depth_program, positions, faces)
         self.visibility = artifact.arrays["visibility"]

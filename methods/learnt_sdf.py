@@ -42,6 +42,7 @@ from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_met
 from prtbench.scene import Texture
 from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
+from methods import SHADER_DIR
 from methods.learnt.config import LearntConfig
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
@@ -329,7 +330,8 @@ class GlslSdfRenderer(Renderer):
                    "SDF_MATERIALS": len(kd)}
         self.program = load_sdf_program(
             self.ctx, scene, "learnt_sdf.frag", defines=defines, max_steps=config.max_steps,
-            sources={"learnt_weights.glsl": glsl.weights_source([network], spec)})
+            sources={"learnt_weights.glsl": glsl.weights_source([network], spec)},
+            search_path=[SHADER_DIR])
         self.program["material_kd"].write(kd.tobytes())
         self.program["material_ks"].write(ks.tobytes())
         self.program["material_shininess"].write(shininess.tobytes())

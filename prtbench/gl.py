@@ -1,10 +1,11 @@
 """OpenGL through moderngl on a headless EGL context (DESIGN.md §9).
 
 One process-wide context (Mesa llvmpipe on CPU machines, the NVIDIA driver on GPU machines),
-float32 render targets without MSAA for metric renders, GLSL programs loaded from
-``methods/shaders/*.glsl`` with ``#include`` and injected ``#define``\\ s, mesh upload, and GPU
-timer queries. Images read back from a :class:`RenderTarget` are (H, W, 4) float32 with row 0
-at the top, like every other image in prtbench.
+float32 render targets without MSAA for metric renders, GLSL programs loaded from the core's
+``prtbench/shaders`` plus the folders a caller passes (a method's own ``shaders/``), with
+``#include`` and injected ``#define``\\ s, mesh upload, and GPU timer queries. Images read
+back from a :class:`RenderTarget` are (H, W, 4) float32 with row 0 at the top, like every other
+image in prtbench.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ try:  # a module attribute so callers can use gl.moderngl's constants (DEPTH_TES
     import moderngl
 except ImportError:  # create_context reports it with the install hint
     moderngl = None
+
 
 _MESA_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
 _context = None
@@ -158,11 +160,14 @@ class RenderTarget:
 # --------------------------------------------------------------------------------- shaders
 
 
-def shader_dir() -> Path:
-    """``methods/shaders``: where stage files and includes live."""
-    import methods
+#: The core's GLSL (SH, BRDF, PRT shading, SDF tracing), package data of prtbench. The core never
+#: looks into a plug-in's folder: a method passes its own through ``search_path``.
+CORE_SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 
-    return Path(methods.__file__).resolve().parent / "shaders"
+
+def shader_dir() -> Path:
+    """``prtbench/shaders``: the core's stage files and includes, always searched last."""
+    return CORE_SHADER_DIR
 
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
@@ -261,8 +266,10 @@ def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
     """Compile and link a program from GLSL stage files.
 
     Stage files are looked up as ``<dir>/<name>`` or ``<dir>/<name>.glsl`` in ``search_path``
-    and then ``methods/shaders``. ``#include "file.glsl"`` lines are resolved recursively
-    (relative to the including file first), each file at most once per stage; they are resolved
+    (a method passes its own shader folder) and then the core's ``prtbench/shaders``, so a
+    method's shaders can ``#include "sh.glsl"``, ``"prt_shading.glsl"`` or ``"sdf_trace.glsl"``.
+    ``#include "file.glsl"`` lines are resolved recursively (relative to the including file
+    first, then along the same folders), each file at most once per stage; they are resolved
     textually, before the GLSL preprocessor, so an ``#include`` inside ``#if`` is always taken.
     ``defines`` become ``#define KEY VALUE`` lines right after ``#version``; ``#line`` directives
     keep compiler line numbers pointing into the original files.
@@ -293,7 +300,7 @@ def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
                 (Path(tmp) / name).write_text(text)
             return load_program(ctx, vertex, fragment, defines=defines, geometry=geometry,
                                 search_path=[tmp, *search_path])
-    dirs = [Path(d) for d in search_path] + [shader_dir()]
+    dirs = [Path(d) for d in search_path] + [CORE_SHADER_DIR]
     files: list[Path] = []
     stages = {"vertex_shader": vertex, "fragment_shader": fragment, "geometry_shader": geometry}
     sources = {key: _stage_source(name, dirs, defines, files)

@@ -254,11 +254,12 @@ def render_wireframe(scene, view, *, width: int, height: int, line_width: float 
     geometry : ndarray, shape (height, width), bool
         Pixels covered by any triangle.
     """
+    from methods import SHADER_DIR
     from methods._raster import clip_planes
     from prtbench import gl
 
     ctx = gl.create_context()
-    program = gl.load_program(ctx, "wireframe.vert", "wireframe.frag")
+    program = gl.load_program(ctx, "wireframe.vert", "wireframe.frag", search_path=[SHADER_DIR])
     positions, _, faces, _ = scene.merged()
     corners = np.asarray(positions, np.float32)[np.asarray(faces).reshape(-1)]  # (3F, 3)
     bary = np.tile(np.eye(3, dtype=np.float32), (len(faces), 1))  # (3F, 3)

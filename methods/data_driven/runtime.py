@@ -25,6 +25,7 @@ from prtbench import gl
 from prtbench.method import FrameTimes, Renderer
 from prtbench.scene import View
 
+from .. import SHADER_DIR
 from .shadows import LIGHT_DEFINES, DirectLighting
 
 def _clip_planes(scene_lo: np.ndarray, scene_hi: np.ndarray, view: View) -> tuple[float, float]:
@@ -42,7 +43,8 @@ class FakeGBuffer:
         p, s = points.shape[:2]
         self.n_points, self.supersample = int(p), int(s)
         self.program = gl.load_program(ctx, "data_driven_fullscreen.vert", "data_driven_gbuffer.frag",
-                                       defines={**LIGHT_DEFINES, "SUPERSAMPLE": self.supersample})
+                                       defines={**LIGHT_DEFINES, "SUPERSAMPLE": self.supersample},
+                                       search_path=[SHADER_DIR])
 
         def texture(values: np.ndarray):
             rgba = np.zeros((s, p, 4), np.float32)  # row s, column i
@@ -94,7 +96,7 @@ class Transfer:
         defines = {"MULTI_CHANNEL": int(self.multi), "GAMMA_SPACE": int(gamma != 1.0),
                    "GAMMA": float(gamma)}
         self.program = gl.load_program(ctx, "data_driven_fullscreen.vert", "data_driven_transfer.frag",
-                                       defines=defines)
+                                       defines=defines, search_path=[SHADER_DIR])
         # (C, n - 1, X) -> one (X wide, C·(n - 1) high) texture: channel c's rows follow c - 1's
         # (C = 3); a single matrix (C = 1) serves every channel.
         m = np.asarray(matrix, np.float32)
@@ -179,7 +181,8 @@ class DataDrivenRenderer(Renderer):
         self._mesh = (positions, arrays["mesh_normals"], arrays["mesh_albedo"], arrays["mesh_uvs"],
                       faces)
         self._programs: dict[tuple[bool, bool], Any] = {}
-        self.depth_program = gl.load_program(self.ctx, "data_driven_shade.vert", "data_driven_depth.frag")
+        self.depth_program = gl.load_program(self.ctx, "data_driven_shade.vert", "data_driven_depth.frag",
+                                             search_path=[SHADER_DIR])
         self.depth_vao = gl.upload_mesh(self.ctx, self.depth_program, positions, faces)
         self.target = gl.RenderTarget(self.ctx, self.width, self.height)
         self.timer = gl.GpuTimer(self.ctx)
@@ -196,7 +199,7 @@ class DataDrivenRenderer(Renderer):
                        "N_TEXTURES": self.layers, "GAMMA_SPACE": int(self.gamma != 1.0),
                        "GAMMA": self.gamma}
             program = gl.load_program(self.ctx, "data_driven_shade.vert", "data_driven_shade.frag",
-                                      defines=defines)
+                                      defines=defines, search_path=[SHADER_DIR])
             positions, normals, albedo, uvs, faces = self._mesh
             vao = gl.upload_mesh(self.ctx, program, positions, faces,
                                  attributes={"normal": normals, "kd": albedo, "lightmap_uv": uvs})

@@ -17,6 +17,7 @@ import numpy as np
 from prtbench import gl
 from prtbench.scene import View
 
+from .. import SHADER_DIR
 from .lights import DirectionalLight, PointLight, SpotLight, analytic_lights, is_environment
 
 MAX_LIGHTS = 64
@@ -152,7 +153,8 @@ class DirectLighting:
         self.shadow_resolution = int(shadow_resolution)
         self.env_shadow_resolution = int(env_shadow_resolution)
         self.env_lights = int(env_lights)
-        self.program = gl.load_program(ctx, "data_driven_shadow.vert", "data_driven_shadow.frag")
+        self.program = gl.load_program(ctx, "data_driven_shadow.vert", "data_driven_shadow.frag",
+                                       search_path=[SHADER_DIR])
         self.vao = gl.upload_mesh(ctx, self.program, positions, faces)
         self.atlas = None
         self.fbo = None

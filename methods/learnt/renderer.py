@@ -12,6 +12,7 @@ import numpy as np
 from prtbench import gl
 from prtbench.method import FrameTimes, Renderer
 
+from .. import SHADER_DIR
 from . import glsl
 from .model import LearntModel
 
@@ -57,13 +58,14 @@ class LearntGLBase(Renderer):
         self.ctx = gl.create_context()
         self.renderer_string = gl.renderer_string(self.ctx)
         self.program = gl.load_program(self.ctx, "learnt.vert", fragment_shader, defines=defines,
-                                       search_path=[include_dir])
+                                       search_path=[include_dir, SHADER_DIR])
         positions, _, faces, _ = scene.merged()
         self.vao = gl.upload_mesh(self.ctx, self.program, positions, faces,
                                   attributes=vertex_attributes(scene))
         self.depth_program = self.depth_vao = None
         if depth_prepass:
-            self.depth_program = gl.load_program(self.ctx, "learnt.vert", "learnt_depth.frag")
+            self.depth_program = gl.load_program(self.ctx, "learnt.vert", "learnt_depth.frag",
+                                                 search_path=[SHADER_DIR])
             self.depth_vao = gl.upload_mesh(self.ctx, self.depth_program, positions, faces)
         self.target = gl.RenderTarget(self.ctx, width, height, attachments=attachments)
         self.timer = gl.GpuTimer(self.ctx)

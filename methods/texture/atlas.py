@@ -21,6 +21,7 @@ import numpy as np
 from prtbench.errors import InvalidInputError
 from prtbench.scene import Scene
 
+from .. import SHADER_DIR
 from .shading import ShadingInputs, normal_map_texture
 
 
@@ -144,7 +145,7 @@ def render_gbuffer(scene: Scene, atlas: AtlasMesh, shading: ShadingInputs) -> GB
     }
     ctx = gl.create_context()
     program = gl.load_program(ctx, "texture_gbuffer.vert", "texture_gbuffer.frag",
-                              geometry="texture_gbuffer.geom")
+                              geometry="texture_gbuffer.geom", search_path=[SHADER_DIR])
     r, sets = atlas.resolution, atlas.sets
     out_pos = np.zeros((sets, r, r, 3), np.float32)
     out_nrm = np.zeros((sets, r, r, 3), np.float32)

@@ -15,7 +15,7 @@ from prtbench import gl
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Renderer
 
-from .. import _triple
+from .. import SHADER_DIR, _triple
 from .atlas import AtlasMesh
 from .shading import ShadingInputs, normal_map_texture
 from .texels import layer_count, rgba_layers
@@ -59,8 +59,10 @@ class TextureRenderer(Renderer):
         defines = {"SH_BANDS": self.sh_bands, "PRODUCT_TP": product == "tp",
                    "TRANSFER_LAYERS": self.transfer_layers, "BOUNCES": n_bounces,
                    "BOUNCE_LAYERS": self.bounce_layers, "TEXTURE_SETS": sets}
-        self.program = gl.load_program(ctx, "texture_prt.vert", "texture_prt.frag", defines=defines)
-        self.depth_program = gl.load_program(ctx, "texture_depth.vert", "texture_depth.frag")
+        self.program = gl.load_program(ctx, "texture_prt.vert", "texture_prt.frag", defines=defines,
+                                       search_path=[SHADER_DIR])
+        self.depth_program = gl.load_program(ctx, "texture_depth.vert", "texture_depth.frag",
+                                             search_path=[SHADER_DIR])
         self._resident = []
         self._texture_bytes = 0
         filter_ = ctx.LINEAR if config.filtering == "bilinear" else ctx.NEAREST

@@ -41,7 +41,7 @@ def load_sdf_program(ctx, surface: Any, fragment: str, *, vertex: str = "sdf_ful
     ctx : moderngl.Context
     surface : SdfSurface or Scene with ``sdf``
     fragment, vertex : str
-        Stage files (``methods/shaders`` or ``search_path``).
+        Stage files (``search_path``, then the core's ``prtbench/shaders``).
     defines : dict, optional
         Extra ``#define``\\ s (``SDF_MAX_STEPS`` / ``SDF_RELAXATION`` come from the keywords).
     sources : dict, optional

@@ -8,7 +8,7 @@ combinations. Every node answers
 * :meth:`SdfNode.material_at` — the integer material id of the primitive a point is nearest to;
 * :meth:`SdfNode.glsl` — GLSL source of ``float scene_sdf(vec3 p)``, ``int scene_material(vec3
   p)`` and ``float scene_sdf_material(vec3 p, out int material)``, generated from the tree at
-  run time (it calls the primitives of ``methods/shaders/sdf_primitives.glsl``, which mirror
+  run time (it calls the primitives of ``prtbench/shaders/sdf_primitives.glsl``, which mirror
   the NumPy formulas below line by line);
 * :meth:`SdfNode.spec` — a JSON-able description (cache keys, reports).
 
@@ -177,7 +177,7 @@ class SdfNode:
     def glsl(self) -> str:
         """GLSL source defining ``scene_sdf``, ``scene_material`` and ``scene_sdf_material``.
 
-        It ``#include``\\ s ``sdf_primitives.glsl`` (``methods/shaders``) and is meant to be
+        It ``#include``\\ s ``sdf_primitives.glsl`` (``prtbench/shaders``) and is meant to be
         given to :func:`prtbench.gl.load_program` as the virtual file ``scene_sdf.glsl``.
         """
         cg = Codegen()

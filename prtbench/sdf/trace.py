@@ -5,7 +5,7 @@ dropped from the working set each step). A ray is clipped to the surface's bound
 ω·d (over-relaxed, Keinert et al. 2014 "Enhanced sphere tracing"), and falls back to the safe
 step d from its previous point when the over-relaxed step left a gap between the unbounding
 spheres or landed inside; it hits where d < ``eps`` and misses when it leaves the box or runs
-out of steps. ``methods/shaders/sdf_trace.glsl`` runs the same loop on the GPU.
+out of steps. ``prtbench/shaders/sdf_trace.glsl`` runs the same loop on the GPU.
 
 :func:`compute_sdf_transfer` is :func:`prtbench.transfer.compute_transfer` with the embree
 mesh tracer replaced by sphere tracing of the SDF: built from the same pieces (ray patterns,
