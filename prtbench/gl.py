@@ -23,10 +23,22 @@ import numpy as np
 
 from .errors import InvalidInputError, PrtbenchError, UnknownNameError
 
-try:  # a module attribute so callers can use gl.moderngl's constants (DEPTH_TEST, ...)
-    import moderngl
-except ImportError:  # create_context reports it with the install hint
-    moderngl = None
+
+def _moderngl():
+    """moderngl, imported on first GL use so importing a method's module (e.g. for its summary
+    in ``prtbench list methods``) stays free of it; None when it is not installed."""
+    try:
+        import moderngl
+    except ImportError:  # create_context reports it with the install hint
+        return None
+    return moderngl
+
+
+def __getattr__(name: str):
+    # ``gl.moderngl`` stays usable for its constants (DEPTH_TEST, TRIANGLES, ...), lazily.
+    if name == "moderngl":
+        return _moderngl()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 _MESA_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
@@ -60,6 +72,7 @@ def create_context():
     with _context_lock:
         if _context is not None:
             return _context
+        moderngl = _moderngl()
         if moderngl is None:
             raise GLUnavailableError("moderngl is not installed; pip install moderngl")
         first_error = None
@@ -308,7 +321,7 @@ def load_program(ctx, vertex: str | Path, fragment: str | Path, *,
     stage_files = [_find_shader(name, dirs) for name in stages.values() if name is not None]
     try:
         return ctx.program(**sources)
-    except moderngl.Error as exc:
+    except _moderngl().Error as exc:
         raise PrtbenchError(_compile_error_message(str(exc), files, stage_files)) from None
 
 
@@ -346,10 +359,11 @@ def upload_mesh(ctx, program, positions: np.ndarray, faces: np.ndarray, *,
         raise InvalidInputError(f"mesh face indices span {faces.min()}..{faces.max()}; "
                                 f"accepted: 0..{n_vertices - 1}")
     inputs = {position_name: positions, **(attributes or {})}
+    attribute_type = _moderngl().Attribute
     bindings, buffers = [], []
     for name, values in inputs.items():
         member = program.get(name, None)
-        if not isinstance(member, moderngl.Attribute):  # absent, or a uniform of that name
+        if not isinstance(member, attribute_type):  # absent, or a uniform of that name
             continue
         values = np.asarray(values, dtype=np.float32)
         values = values.reshape(len(values), -1)

@@ -7,6 +7,8 @@ include the real ``methods/shaders`` files, which is what is under test.
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -399,3 +401,23 @@ def test_unavailable_gl_names_the_packages(monkeypatch):
     message = str(info.value)
     assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in message and "eglGetDisplay failed" in message
     assert "\n" not in message and isinstance(info.value, PrtbenchError)
+
+
+def test_moderngl_is_imported_on_first_gl_use(monkeypatch):
+    # Importing prtbench.gl (so any method module) must not import moderngl: `prtbench list
+    # methods` imports the method modules for their summaries.
+    code = ("import sys, prtbench.gl as gl\n"
+            "before = 'moderngl' in sys.modules\n"
+            "constant = gl.moderngl.TRIANGLES\n"
+            "print(before, 'moderngl' in sys.modules, constant)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[:2] == ["False", "True"]
+    import moderngl
+
+    assert gl.moderngl is moderngl
+    monkeypatch.setattr(gl, "_context", None)
+    monkeypatch.setitem(sys.modules, "moderngl", None)  # what a missing package looks like
+    with pytest.raises(gl.GLUnavailableError, match="moderngl is not installed; pip install moderngl"):
+        gl.create_context()
+    with pytest.raises(AttributeError, match="no attribute 'no_such_thing'"):
+        gl.no_such_thing  # noqa: B018 - the module __getattr__ still refuses other names
