@@ -188,6 +188,7 @@ class IrradianceVolume(Method):
     Config = IrradianceVolumeConfig
     precompute_version = "1"
     summary = "Greger 1998 irradiance volume: N³ SH radiance probes, trilinear lookup per fragment"
+    paper = "Greger, Shirley, Hubbard and Greenberg 1998, The Irradiance Volume (IEEE CG&A)"
     profile_overrides = {
         "smoke": {"rays_per_probe": 64},
         "quick": {"rays_per_probe": 256},

@@ -248,6 +248,7 @@ class LearntSdf(Method):
     precompute_version = f"1+sdf-transfer-{SDF_TRANSFER_VERSION}"
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
+    paper = "Sirikonda 2023 (PhD thesis), §4.2.2 learnt transfer on SDFs"
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "sdf-rabbit", "variant": "glossy", "light": "sky"}
 

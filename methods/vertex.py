@@ -40,6 +40,9 @@ class VertexPRT(Method):
     Config = VertexConfig
     precompute_version = "1"
     summary = "Sloan 2002 diffuse transfer vectors at vertices, shaded per vertex"
+    paper = ("Sloan, Kautz and Snyder 2002, Precomputed Radiance Transfer for Real-Time "
+             "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "
+             "diffuse transfer vectors")
     profile_overrides = {
         "smoke": {"rays_per_point": 128, "sh_bands": 4},
         "quick": {"rays_per_point": 512},

@@ -202,6 +202,8 @@ class VertexTP(_TransferVectorMethod):
     """Transfer vectors at vertices, glossy shading via the SH triple product (Γ list)."""
 
     summary = "Glossy vertex PRT: transfer vectors × light by SH triple product, per vertex"
+    paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
+             "textures), §3 triple product (TP), at vertices")
     _mode = MODE_TP
 
 
@@ -210,6 +212,8 @@ class VertexTPFL(_TransferVectorMethod):
     """Transfer vectors at vertices, glossy shading via the fixed-light triple-product matrix."""
 
     summary = "Glossy vertex PRT: transfer vectors × per-light TPFL matrix, per vertex"
+    paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
+             "textures), §3 fixed-light triple product (TPFL), at vertices")
     _mode = MODE_TPFL
 
 
@@ -220,6 +224,9 @@ class SloanMatrix(_GlossyVertexMethod):
     Config = SloanMatrixConfig
     precompute_version = "1"
     summary = "Sloan 2002 glossy transfer matrices at vertices (n⁴ floats each), per vertex"
+    paper = ("Sloan, Kautz and Snyder 2002, Precomputed Radiance Transfer for Real-Time "
+             "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "
+             "glossy transfer matrices")
     _mode = MODE_MATRIX
 
     @classmethod

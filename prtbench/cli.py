@@ -21,7 +21,9 @@ def _list(args: argparse.Namespace) -> int:
     if args.kind == "methods":
         from .method import METHODS
 
-        names = METHODS.names()
+        summaries = METHODS.summaries()
+        width = max(map(len, summaries), default=0)
+        names = [f"{name:<{width}}  {text}".rstrip() for name, text in summaries.items()]
     elif args.kind == "scenes":
         from .scene import SCENES
 
@@ -48,6 +50,14 @@ def _list(args: argparse.Namespace) -> int:
 
         names = list(ASSETS)
     print("\n".join(names))
+    return 0
+
+
+def _describe(args: argparse.Namespace) -> int:
+    from .describe import format_method
+    from .method import METHODS
+
+    print(format_method(args.method, METHODS.get(args.method)))
     return 0
 
 
@@ -158,6 +168,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="list methods, scenes, lights, tables, profiles or assets")
     p.add_argument("kind", choices=LIST_KINDS)
     p.set_defaults(func=_list)
+
+    p = sub.add_parser("describe", help="a method's summary, paper and knobs (type, default, range)")
+    p.add_argument("method")
+    p.set_defaults(func=_describe)
 
     p = sub.add_parser("assets", help="fetch pinned mesh/HDRI packages into the cache")
     p.add_argument("action", choices=("fetch", "list"))

@@ -112,6 +112,8 @@ class Method(ABC):
     profile_overrides: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
     #: One line for ``prtbench list methods``.
     summary: ClassVar[str] = ""
+    #: The publication the method implements (authors, year, section), for ``prtbench describe``.
+    paper: ClassVar[str] = ""
 
     @classmethod
     def make_config(cls, overrides: Mapping[str, Any] | None = None, *, profile: str = "quick"):

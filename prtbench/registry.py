@@ -5,6 +5,8 @@ are either registered eagerly with the :meth:`Registry.register` decorator when 
 imported, or declared lazily as ``"module:attr"`` strings, normally through the package
 entry-point group ``prtbench.<kind>s`` in ``pyproject.toml``. Listing names never imports a lazy
 module, so ``prtbench list`` stays instant and free of torch, moderngl, embreex and mitsuba.
+:meth:`Registry.summaries` does import the entries' modules, which is cheap because plug-in
+modules import their heavy backends inside the functions that use them (a test checks it).
 """
 
 from __future__ import annotations
@@ -83,6 +85,23 @@ class Registry(Generic[T]):
         if name not in self._objects:
             self._objects[name] = getattr(module, attr)
         return self._objects[name]
+
+    def summaries(self, attribute: str = "summary") -> dict[str, str]:
+        """``name -> one line``: each entry's ``attribute`` (e.g. a method class's ``summary``).
+
+        Imports every lazy module, which must not import torch, moderngl, embreex or mitsuba at
+        module level. An entry whose module cannot be imported gets the import error's first
+        line instead, so one broken plug-in does not hide the others.
+        """
+        out = {}
+        for name in self.names():
+            try:
+                text = getattr(self.get(name), attribute, "")
+            except ImportError as exc:
+                first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                text = f"(cannot import: {first})"
+            out[name] = " ".join(str(text or "").split())
+        return out
 
     def check(self, name: str) -> str:
         """Validate ``name`` without importing anything; returns it."""

@@ -122,6 +122,7 @@ class DataDrivenPRT(Method):
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
     summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
                "lightmap basis driven by a fake G-buffer")
+    paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"
     profile_overrides = {
         "smoke": {"configurations": 8, "measurement_points": 64, "lightmap_resolution": 128,
                   "paths_per_texel": 8, "env_samples": 2, "env_lights": 8, "basis": 4,

@@ -35,6 +35,7 @@ class LearntTransfer(Method):
     Config = LearntConfig
     precompute_version = "1"
     summary = "thesis ch. 4 learnt transfer: MLP (p, n) -> SH transfer, GLSL or torch, TPFL/TP"
+    paper = "Sirikonda 2023 (PhD thesis), ch. 4 learnt transfer"
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "plants", "variant": "glossy", "light": "sky"}
 

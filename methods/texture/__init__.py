@@ -222,6 +222,8 @@ class TextureTP(TextureMethod):
 
     product = "tp"
     summary = "PRTT transfer textures, per-fragment triple product with the light (TP)"
+    paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
+             "textures), Algorithms 1 and 2, TP shading")
 
 
 @register_method("texture-tpfl")
@@ -230,3 +232,5 @@ class TextureTPFL(TextureMethod):
 
     product = "tpfl"
     summary = "PRTT transfer textures, per-fragment fixed-light triple product matrix (TPFL)"
+    paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
+             "textures), Algorithms 1 and 2, TPFL shading")
