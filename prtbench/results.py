@@ -194,6 +194,7 @@ class ResultsStore:
         if self.path.is_dir():
             raise InvalidInputError(f"results store '{self.path}' is a folder; accepted: an SQLite "
                                     f"file path (e.g. {self.path / 'prtbench.sqlite'})")
+        _check_header(self.path)
         if self.readonly:
             if not self.path.is_file():
                 raise PrtbenchError(f"no results store at '{self.path}'; `prtbench run` fills it")
@@ -360,6 +361,24 @@ class ResultsStore:
             return conn.execute("SELECT COUNT(*) FROM renders").fetchone()[0]
         finally:
             conn.close()
+
+
+_SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def _check_header(path: Path) -> None:
+    """A non-empty file that is not SQLite is an error: SQLite itself would silently take a
+    file shorter than its header for an empty database and overwrite it."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(_SQLITE_HEADER))
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+        return
+    except OSError as exc:
+        raise InvalidInputError(f"results store '{path}' cannot be read ({exc.strerror})") from None
+    if head and head != _SQLITE_HEADER:
+        raise InvalidInputError(f"results store '{path}' is not a usable SQLite file: "
+                                f"it does not start with the SQLite header")
 
 
 def _migrate(conn: sqlite3.Connection) -> None:

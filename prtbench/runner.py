@@ -13,6 +13,7 @@ reference, an empty geometry mask, a non-finite masked metric — is still store
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 import uuid
@@ -228,16 +229,20 @@ def degenerate_reason(image: np.ndarray, test_display: np.ndarray, reference_dis
     Returns
     -------
     str
-        ``"; "``-joined reasons: a method image without a finite pixel or that displays all
-        black, a reference that displays all black, an empty geometry mask, masked metrics
-        that are NaN or infinite (with their values).
+        ``"; "``-joined reasons: a method image with non-finite values (then ``values`` are
+        NaN: the metrics refuse such images) or that displays all black, a reference that
+        displays all black, an empty geometry mask, masked metrics that are NaN or infinite
+        (with their values).
     """
     reasons = []
     finite = np.isfinite(image)
     if not finite.any():
         reasons.append("method image has no finite pixel")
-    elif not np.nanmax(np.abs(np.where(finite, test_display, 0.0))) >= _BLACK_DISPLAY:
-        reasons.append("method image is all black")
+    else:
+        if not finite.all():
+            reasons.append(f"method image has {int(np.count_nonzero(~finite))} non-finite values")
+        if not np.nanmax(np.abs(np.where(finite, test_display, 0.0))) >= _BLACK_DISPLAY:
+            reasons.append("method image is all black")
     if not np.nanmax(np.abs(reference_display), initial=0.0) >= _BLACK_DISPLAY:
         reasons.append("reference image is all black")
     if not np.asarray(mask).any():
@@ -306,7 +311,12 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
             mask = geometry_mask(scene, view, width, height)
             test_d = imageio.display(image, exposure=scene.exposure)
             ref_d = imageio.display(ref_image, exposure=scene.exposure)
-            values = metrics.compute_metrics(test_d, ref_d, mask=mask)
+            if np.isfinite(image).all():
+                values = metrics.compute_metrics(test_d, ref_d, mask=mask)
+            else:  # the metrics refuse non-finite pixels: nothing here is measured
+                values = {key: math.nan for name in metrics.LDR_METRICS
+                          for key in (name, f"{name}_masked")}
+                test_d = np.nan_to_num(test_d, nan=0.0)  # for the PNGs
             reason = degenerate_reason(image, test_d, ref_d, mask, values)
             times = renderer.frame_time(view, light, warmup=prepared.profile.timing_warmup,
                                         frames=prepared.profile.timing_frames)
