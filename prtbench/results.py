@@ -473,7 +473,7 @@ def git_sha(cwd: str | Path | None = None) -> str:
 
 
 DEFAULT_COLUMNS = ("method", "scene", "light", "view", "size", "profile", "psnr", "psnr_masked",
-                   "ssim_masked", "flip_masked", "frame_ms", "memory_bytes")
+                   "ssim_masked", "flip_masked", "frame_ms", "memory_bytes", "status")
 
 
 def _format_value(value) -> str:
