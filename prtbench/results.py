@@ -198,7 +198,13 @@ class ResultsStore:
         if self.readonly:
             if not self.path.is_file():
                 raise PrtbenchError(f"no results store at '{self.path}'; `prtbench run` fills it")
-            target, options = f"{self.path.resolve().as_uri()}?mode=ro", {"uri": True}
+            # A read-only connection to a WAL file creates its -wal/-shm files (and cannot open
+            # it at all in a read-only folder). With no -wal file there is no writer and no
+            # uncheckpointed data, so open it immutable: nothing is created. Otherwise the
+            # files exist already and a plain read-only connection sees the writers' data.
+            wal = self.path.with_name(self.path.name + "-wal").exists()
+            target = f"{self.path.resolve().as_uri()}?mode=ro{'' if wal else '&immutable=1'}"
+            options = {"uri": True}
         else:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             target, options = self.path, {}

@@ -215,6 +215,20 @@ def test_read_only_store_creates_nothing(tmp_path):
         ResultsStore(tmp_path, readonly=True).query()
     with pytest.raises(UnknownNameError, match="result status"):
         ResultRow(method="vertex", scene="plane", status="fine")
+    # Reading a WAL store leaves no -wal/-shm files behind (a plain read-only connection would).
+    store = tmp_path / "r.sqlite"
+    ResultsStore(store).append([ResultRow(method="vertex", scene="plane")])
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert len(ResultsStore(store, readonly=True).query()) == 1
+    ResultsStore(store).check()
+    assert sorted(p.name for p in tmp_path.iterdir()) == before == ["r.sqlite"]
+    # While a writer holds the WAL open, a reader sees its committed rows.
+    writer = sqlite3.connect(store)
+    writer.execute("SELECT COUNT(*) FROM renders").fetchall()  # holds the WAL open
+    ResultsStore(store).append([ResultRow(method="texture", scene="plane")])
+    assert (tmp_path / "r.sqlite-wal").exists()
+    assert [r.method for r in ResultsStore(store, readonly=True).query()] == ["vertex", "texture"]
+    writer.close()
 
 
 # --- output locations -------------------------------------------------------------------------
