@@ -27,22 +27,16 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from . import strict_json
+from . import store_schema, strict_json
 from .errors import InvalidInputError, PrtbenchError, UnknownNameError
+from .store_schema import SCHEMA_VERSION
 
-SCHEMA_VERSION = 3
-#: Older schema versions this prtbench reads and migrates.
-_MIGRATABLE = (2,)
 PROFILES = ("smoke", "quick", "paper")
 #: ok: a measurement; degenerate: measured, but meaningless (black image, empty mask,
 #: non-finite masked metric: see status_reason); failed: the measurement did not complete.
 STATUSES = ("ok", "degenerate", "failed")
 _BUSY_TIMEOUT_S = 60.0
 _JSON_FIELDS = ("config", "view_json", "metrics", "scene_params")
-#: Columns added after schema 2, with the values old rows get.
-_ADDED_COLUMNS = {"status": "TEXT NOT NULL DEFAULT 'ok'",
-                  "status_reason": "TEXT NOT NULL DEFAULT ''",
-                  "precompute_rebuilt": "INTEGER NOT NULL DEFAULT 0"}
 
 
 def _utc_now() -> str:
@@ -162,8 +156,8 @@ def _to_json(value) -> str:
 
 
 def _column_sql(name: str) -> str:
-    if name in _ADDED_COLUMNS:
-        return f"{name} {_ADDED_COLUMNS[name]}"
+    if name in store_schema.ADDED_COLUMNS:
+        return f"{name} {store_schema.ADDED_COLUMNS[name]}"
     return f"{name} {_SQL_TYPES.get(name, 'TEXT')}" + (" NOT NULL" if name in ("method", "scene") else "")
 
 
@@ -194,7 +188,7 @@ class ResultsStore:
         if self.path.is_dir():
             raise InvalidInputError(f"results store '{self.path}' is a folder; accepted: an SQLite "
                                     f"file path (e.g. {self.path / 'prtbench.sqlite'})")
-        _check_header(self.path)
+        store_schema.check_header(self.path)
         if self.readonly:
             if not self.path.is_file():
                 raise PrtbenchError(f"no results store at '{self.path}'; `prtbench run` fills it")
@@ -235,42 +229,11 @@ class ResultsStore:
         if self.path.is_dir() or self.path.exists():
             ResultsStore(self.path, readonly=True)._connect().close()
 
-    def _foreign(self, what: str) -> PrtbenchError:
-        return PrtbenchError(f"results store '{self.path}' is an SQLite file but not a prtbench "
-                             f"results store ({what}); use another --results path")
-
-    def _stored_version(self, conn: sqlite3.Connection) -> int | None:
-        """The schema version, None for an empty file; raises for a foreign database."""
-        tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-        if not tables:
-            return None
-        if "meta" not in tables:
-            raise self._foreign(f"tables {', '.join(sorted(tables))}, no 'meta'")
-        row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-        if row is None:
-            raise self._foreign("its 'meta' table has no schema_version")
-        version = int(row[0])
-        if version != SCHEMA_VERSION and version not in _MIGRATABLE:
-            raise PrtbenchError(
-                f"results store '{self.path}' has schema version {version}; this prtbench reads "
-                f"versions {', '.join(map(str, (*_MIGRATABLE, SCHEMA_VERSION)))} (move the file "
-                f"aside or use --results)")
-        return version
-
-    def _render_columns(self, conn: sqlite3.Connection, *, version: int) -> tuple[str, ...]:
-        """Our columns present in ``renders``; raises if any a schema-``version`` store has is missing."""
-        present = {r[1] for r in conn.execute("PRAGMA table_info(renders)")}
-        expected = COLUMNS if version == SCHEMA_VERSION else tuple(c for c in COLUMNS if c not in _ADDED_COLUMNS)
-        missing = [c for c in expected if c not in present]
-        if missing:
-            raise self._foreign(f"table 'renders' lacks {', '.join(missing)}")
-        return tuple(c for c in COLUMNS if c in present)
-
     def _read_schema(self, conn: sqlite3.Connection) -> tuple[str, ...]:
-        version = self._stored_version(conn)
+        version = store_schema.stored_version(conn, self.path)
         if version is None:
             return COLUMNS  # an empty file: no rows
-        return self._render_columns(conn, version=version)
+        return store_schema.render_columns(conn, self.path, version=version, columns=COLUMNS)
 
     def _ensure_schema(self, conn: sqlite3.Connection) -> None:
         # The busy timeout does not cover every lock met here: switching a new file to WAL
@@ -293,7 +256,7 @@ class ResultsStore:
         columns = ", ".join(_column_sql(name) for name in COLUMNS)
         conn.execute("BEGIN IMMEDIATE")  # outside the try: a failed BEGIN has nothing to roll back
         try:
-            version = self._stored_version(conn)
+            version = store_schema.stored_version(conn, self.path)
             conn.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
             conn.execute(f"CREATE TABLE IF NOT EXISTS renders (id INTEGER PRIMARY KEY AUTOINCREMENT, {columns})")
             conn.execute("CREATE INDEX IF NOT EXISTS renders_by_name ON renders (method, scene, profile)")
@@ -301,9 +264,9 @@ class ResultsStore:
             if version is None:
                 conn.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
             else:
-                self._render_columns(conn, version=version)
+                store_schema.render_columns(conn, self.path, version=version, columns=COLUMNS)
                 if version != SCHEMA_VERSION:
-                    _migrate(conn)
+                    store_schema.migrate(conn, json_fields=_JSON_FIELDS, to_json=_to_json)
             conn.execute("COMMIT")
         except BaseException:
             conn.execute("ROLLBACK")
@@ -367,50 +330,6 @@ class ResultsStore:
             return conn.execute("SELECT COUNT(*) FROM renders").fetchone()[0]
         finally:
             conn.close()
-
-
-_SQLITE_HEADER = b"SQLite format 3\x00"
-
-
-def _check_header(path: Path) -> None:
-    """A non-empty file that is not SQLite is an error: SQLite itself would silently take a
-    file shorter than its header for an empty database and overwrite it."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(len(_SQLITE_HEADER))
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
-        return
-    except OSError as exc:
-        raise InvalidInputError(f"results store '{path}' cannot be read ({exc.strerror})") from None
-    if head and head != _SQLITE_HEADER:
-        raise InvalidInputError(f"results store '{path}' is not a usable SQLite file: "
-                                f"it does not start with the SQLite header")
-
-
-def _migrate(conn: sqlite3.Connection) -> None:
-    """Schema 2 → 3 inside the caller's transaction.
-
-    Adds the status columns (old rows 'ok') and rewrites JSON that holds NaN/Infinity tokens
-    as strict JSON; a row whose masked metrics were non-finite becomes 'degenerate', as the
-    runner now flags such rows.
-    """
-    present = {r[1] for r in conn.execute("PRAGMA table_info(renders)")}
-    for name, sql in _ADDED_COLUMNS.items():
-        if name not in present:
-            conn.execute(f"ALTER TABLE renders ADD COLUMN {name} {sql}")
-    invalid = " OR ".join(f"json_valid({name}) = 0" for name in _JSON_FIELDS)
-    for record in conn.execute(f"SELECT id, {', '.join(_JSON_FIELDS)} FROM renders WHERE {invalid}"
-                               ).fetchall():
-        fields = {name: json.loads(text) if text else {} for name, text in zip(_JSON_FIELDS, record[1:])}
-        bad = strict_json.non_finite_keys(fields["metrics"])
-        masked = [b for b in bad if b.split("=")[0].endswith("_masked")]
-        status = "degenerate" if masked else "ok"
-        reason = (f"migrated from schema 2: {', '.join(masked)} (masked metric not finite)" if masked
-                  else f"migrated from schema 2: {', '.join(bad)} stored as null" if bad else "")
-        conn.execute(f"UPDATE renders SET {', '.join(f'{n} = ?' for n in _JSON_FIELDS)}, status = ?, "
-                     f"status_reason = ? WHERE id = ?",
-                     [*(_to_json(fields[n]) for n in _JSON_FIELDS), status, reason, record[0]])
-    conn.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
 
 
 def _row_values(row: ResultRow, number: int) -> tuple:

@@ -8,7 +8,8 @@ output file or result row is written.
 
 A view whose measurement is meaningless — a black or non-finite method image, a black
 reference, an empty geometry mask, a non-finite masked metric — is still stored, with status
-``degenerate`` and the reason (:func:`degenerate_reason`); the CLI then exits 1.
+``degenerate`` and the reason (:func:`prtbench.degeneracy.degenerate_reason`); the CLI
+then exits 1.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 from . import config as config_mod
 from . import strict_json
 from .errors import InvalidInputError, UnknownNameError
+from .degeneracy import degenerate_reason
 from .method import METHODS, Method, load_or_precompute
 from .profiles import Profile, get_profile
 from .scene import SCENES, VARIANTS, Scene, get_scene
@@ -205,52 +207,6 @@ def geometry_mask(scene: Scene, view, width: int, height: int) -> np.ndarray:
 
 
 _TRACERS: dict[str, Any] = {}
-
-
-#: A display value below half an 8-bit step prints as black.
-_BLACK_DISPLAY = 0.5 / 255.0
-
-
-def degenerate_reason(image: np.ndarray, test_display: np.ndarray, reference_display: np.ndarray,
-                      mask: np.ndarray, values: Mapping[str, float]) -> str:
-    """Why a view's measurement is meaningless, or ``""`` when it is not.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W, 3)
-        The method's linear HDR image.
-    test_display, reference_display : ndarray, shape (H, W, 3)
-        Display-space method and reference images (what the metrics compare).
-    mask : ndarray, shape (H, W), bool
-        Geometry pixels.
-    values : mapping
-        The view's metrics.
-
-    Returns
-    -------
-    str
-        ``"; "``-joined reasons: a method image with non-finite values (then ``values`` are
-        NaN: the metrics refuse such images) or that displays all black, a reference that
-        displays all black, an empty geometry mask, masked metrics that are NaN or infinite
-        (with their values).
-    """
-    reasons = []
-    finite = np.isfinite(image)
-    if not finite.any():
-        reasons.append("method image has no finite pixel")
-    else:
-        if not finite.all():
-            reasons.append(f"method image has {int(np.count_nonzero(~finite))} non-finite values")
-        if not np.nanmax(np.abs(np.where(finite, test_display, 0.0))) >= _BLACK_DISPLAY:
-            reasons.append("method image is all black")
-    if not np.nanmax(np.abs(reference_display), initial=0.0) >= _BLACK_DISPLAY:
-        reasons.append("reference image is all black")
-    if not np.asarray(mask).any():
-        reasons.append("geometry mask is empty (no pixel's centre ray hits the scene)")
-    bad = strict_json.non_finite_keys({k: v for k, v in values.items() if k.endswith("_masked")})
-    if bad:
-        reasons.append(f"masked metrics not finite: {', '.join(bad)}")
-    return "; ".join(reasons)
 
 
 def _tracer_for(scene: Scene):

@@ -9,7 +9,6 @@ import math
 import os
 import sqlite3
 import subprocess
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
