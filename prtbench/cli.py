@@ -95,6 +95,10 @@ def _run(args: argparse.Namespace) -> int:
         from .results import default_path
 
         print(f"results store: {request.results_path or default_path()}")
+    if summary.status != "ok":  # stored and written, but not a measurement to trust
+        print(f"prtbench: {summary.status} result (stored with status '{summary.status}'): "
+              f"{summary.status_reason}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -102,18 +106,20 @@ def _reference(args: argparse.Namespace) -> int:
     from .lights import get_light
     from .profiles import get_profile
     from .reference import render_references
-    from .runner import parse_resolution
+    from .outputs import check_cache
+    from .runner import parse_resolution, resolve_views
     from .scene import get_scene
 
     profile = get_profile(args.profile)
     scene = get_scene(args.scene, variant=args.variant)
     light = get_light(args.light or scene.default_light)
-    scene = scene.with_views(args.views or min(profile.views, len(scene.trajectory)))
+    scene = resolve_views(scene, profile, args.views)  # the validator `run` uses
     width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
     if args.spp is not None and args.spp < 1:
         raise PrtbenchError(f"--spp {args.spp}; accepted: a positive integer")
     if args.bounces < 0:
         raise PrtbenchError(f"--bounces {args.bounces}; accepted: 0 or more")
+    check_cache()
     refs = render_references(scene, light, scene.trajectory.views, width=width, height=height,
                              spp=args.spp or profile.reference_spp, bounces=args.bounces)
     for i, ref in enumerate(refs):
@@ -123,18 +129,35 @@ def _reference(args: argparse.Namespace) -> int:
 
 
 def _results(args: argparse.Namespace) -> int:
+    from .profiles import get_profile
     from .results import ResultsStore, format_rows
 
-    rows = ResultsStore(args.results).query(method=args.method, scene=args.scene,
-                                            profile=args.profile)
+    if args.profile is not None:
+        get_profile(args.profile)  # an unknown profile is a mistake, not "no results"
+    # Read-only: a query never creates a folder, a database or a migration.
+    rows = ResultsStore(args.results, readonly=True).query(method=args.method, scene=args.scene,
+                                                           profile=args.profile)
     print(format_rows(rows) if rows else "no results")
     return 0
+
+
+def _check_report_outputs(args: argparse.Namespace) -> None:
+    """``table``/``figure``: the profile, --reports, --results and the cache, before any work."""
+    from . import outputs
+    from .profiles import get_profile
+    from .results import default_path
+
+    get_profile(args.profile)
+    outputs.check_folder("--reports", Path(args.reports))
+    outputs.check_results_store("--results", Path(args.results) if args.results else default_path())
+    outputs.check_cache()
 
 
 def _table(args: argparse.Namespace) -> int:
     from .reproduction import TABLES, run_table
 
     reproduction = TABLES.get(args.name)
+    _check_report_outputs(args)
     paths = run_table(reproduction, profile=args.profile,
                       results_path=Path(args.results) if args.results else None,
                       reports_dir=Path(args.reports))
@@ -147,6 +170,7 @@ def _figure(args: argparse.Namespace) -> int:
     from .reproduction import FIGURES
 
     figure = FIGURES.get(args.name)
+    _check_report_outputs(args)
     for p in figure.make(profile=args.profile, reports_dir=Path(args.reports),
                          results_path=Path(args.results) if args.results else None):
         print(f"wrote {p}")

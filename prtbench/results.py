@@ -4,7 +4,13 @@ Tables and figures are generated only from this store. It is a single SQLite fil
 ``results/prtbench.sqlite`` under the current directory, ``$PRTBENCH_RESULTS`` overrides) in WAL
 mode with a busy timeout, so several sweep processes can append at once; every append is one
 transaction, so a failure never leaves half a batch. Dict-valued fields (config, view, metrics)
-are stored as JSON text; :func:`load` flattens the metrics into ``metric_<name>`` columns.
+are stored as strict JSON text (a non-finite metric is ``null``; the row's ``status`` says why);
+:func:`load` flattens the metrics into ``metric_<name>`` columns.
+
+Other modules may keep auxiliary tables in the same file: the schema check looks only at
+``meta`` and ``renders``. A store written by an older prtbench is migrated on its first append
+(schema 2 → 3 adds ``status``, ``status_reason`` and ``precompute_rebuilt`` and rewrites
+``NaN``/``Infinity`` tokens as ``null``); read-only queries read it without changing it.
 """
 
 from __future__ import annotations
@@ -21,10 +27,14 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+from . import store_schema, strict_json
 from .errors import InvalidInputError, PrtbenchError, UnknownNameError
+from .store_schema import SCHEMA_VERSION
 
-SCHEMA_VERSION = 2
 PROFILES = ("smoke", "quick", "paper")
+#: ok: a measurement; degenerate: measured, but meaningless (black image, empty mask,
+#: non-finite masked metric: see status_reason); failed: the measurement did not complete.
+STATUSES = ("ok", "degenerate", "failed")
 _BUSY_TIMEOUT_S = 60.0
 _JSON_FIELDS = ("config", "view_json", "metrics", "scene_params")
 
@@ -51,14 +61,16 @@ class ResultRow:
         Render resolution in pixels.
     reference_kind : str
         ``"path"`` (Mitsuba) or ``"method:<name>"``.
-    metrics : dict of str to float
-        What :func:`prtbench.metrics.compute_metrics` returned (inf/NaN allowed).
+    metrics : dict of str to float or None
+        What :func:`prtbench.metrics.compute_metrics` returned; a non-finite value is stored
+        (and read back) as None.
     frame_ms, frame_ms_p95 : float or None
         Median and 95th-percentile GPU frame time.
     memory_bytes : int or None
         What the method keeps resident to render.
     precompute_s : float or None
-        Wall time of the (possibly cached) precompute.
+        Wall time of the precompute that built the artifact (a cache hit reports the original
+        time; so does a rebuild of a corrupt artifact whose time was recorded).
     renderer, device : str
         GL renderer string and the machine's description.
     git_sha : str
@@ -77,6 +89,14 @@ class ResultRow:
         The scene builder's parameters (e.g. ``ground_subdivisions``).
     timing_source : str
         ``timer-query`` (GPU) or ``wall+finish`` (software rasteriser), see prtbench.gl.
+    status : str
+        ``ok``, ``degenerate`` or ``failed`` (:data:`STATUSES`).
+    status_reason : str
+        Why a row is not ``ok``, and which values were stored as null; empty when there is
+        nothing to say.
+    precompute_rebuilt : bool
+        The artifact was rebuilt because its cache file was corrupt or missing; when its
+        original time was recorded ``precompute_s`` is that time, else the rebuild's.
     """
 
     method: str
@@ -105,6 +125,9 @@ class ResultRow:
     scene_triangles: int | None = None
     scene_params: dict = field(default_factory=dict)
     timing_source: str = ""
+    status: str = "ok"
+    status_reason: str = ""
+    precompute_rebuilt: bool = False
 
     def __post_init__(self) -> None:
         for name in _JSON_FIELDS:  # rows read back from text, or built by hand from JSON
@@ -116,26 +139,26 @@ class ResultRow:
             raise InvalidInputError(f"reference_kind '{kind}'; accepted: 'path' or 'method:<name>'")
         if self.profile not in PROFILES:
             raise UnknownNameError("profile", self.profile, PROFILES)
+        if self.status not in STATUSES:
+            raise UnknownNameError("result status", self.status, STATUSES)
+        self.status_reason = self.status_reason or ""
+        self.precompute_rebuilt = bool(self.precompute_rebuilt)  # SQLite gives 0/1
 
 
 _SQL_TYPES = {"view": "INTEGER", "width": "INTEGER", "height": "INTEGER", "memory_bytes": "INTEGER",
               "reference_spp": "INTEGER", "scene_triangles": "INTEGER", "frame_ms": "REAL", "frame_ms_p95": "REAL",
-              "precompute_s": "REAL", "reference_noise": "REAL"}
+              "precompute_s": "REAL", "reference_noise": "REAL", "precompute_rebuilt": "INTEGER"}
 COLUMNS = tuple(f.name for f in dataclasses.fields(ResultRow))
 
 
-def _json_default(value):
-    import numpy as np  # only reached for numpy values, which imply numpy is loaded
-
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON-serialisable")
-
-
 def _to_json(value) -> str:
-    return json.dumps(value, sort_keys=True, default=_json_default)
+    return strict_json.dumps(value, sort_keys=True)
+
+
+def _column_sql(name: str) -> str:
+    if name in store_schema.ADDED_COLUMNS:
+        return f"{name} {store_schema.ADDED_COLUMNS[name]}"
+    return f"{name} {_SQL_TYPES.get(name, 'TEXT')}" + (" NOT NULL" if name in ("method", "scene") else "")
 
 
 def default_path() -> Path:
@@ -149,21 +172,45 @@ class ResultsStore:
     Parameters
     ----------
     path : str or Path, optional
-        Default :func:`default_path`. Created (with its folder) on first use.
+        Default :func:`default_path`. Created (with its folder) on first append.
+    readonly : bool
+        Never create, migrate or write: a missing file or folder is an error, and a store of
+        an older schema is read as it is (``prtbench results``).
     """
 
-    def __init__(self, path: str | Path | None = None):
+    def __init__(self, path: str | Path | None = None, *, readonly: bool = False):
         self.path = Path(path) if path is not None else default_path()
+        self.readonly = readonly
         self._schema_checked = False
+        self._columns: tuple[str, ...] = COLUMNS
 
     def _connect(self) -> sqlite3.Connection:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.is_dir():
+            raise InvalidInputError(f"results store '{self.path}' is a folder; accepted: an SQLite "
+                                    f"file path (e.g. {self.path / 'prtbench.sqlite'})")
+        store_schema.check_header(self.path)
+        if self.readonly:
+            if not self.path.is_file():
+                raise PrtbenchError(f"no results store at '{self.path}'; `prtbench run` fills it")
+            # A read-only connection to a WAL file creates its -wal/-shm files (and cannot open
+            # it at all in a read-only folder). With no -wal file there is no writer and no
+            # uncheckpointed data, so open it immutable: nothing is created. Otherwise the
+            # files exist already and a plain read-only connection sees the writers' data.
+            wal = self.path.with_name(self.path.name + "-wal").exists()
+            target = f"{self.path.resolve().as_uri()}?mode=ro{'' if wal else '&immutable=1'}"
+            options = {"uri": True}
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            target, options = self.path, {}
         # Autocommit mode: transactions are explicit BEGIN IMMEDIATE ... COMMIT below.
-        conn = sqlite3.connect(self.path, timeout=_BUSY_TIMEOUT_S, isolation_level=None)
+        conn = sqlite3.connect(target, timeout=_BUSY_TIMEOUT_S, isolation_level=None, **options)
         try:
             conn.execute(f"PRAGMA busy_timeout = {int(_BUSY_TIMEOUT_S * 1000)}")
             if not self._schema_checked:
-                self._ensure_schema(conn)
+                if self.readonly:
+                    self._columns = self._read_schema(conn)
+                else:
+                    self._ensure_schema(conn)
                 self._schema_checked = True
         except sqlite3.DatabaseError as exc:
             conn.close()
@@ -172,6 +219,21 @@ class ResultsStore:
             conn.close()
             raise
         return conn
+
+    def check(self) -> None:
+        """Raise a PrtbenchError unless the store is absent or an SQLite file of our schema.
+
+        Writes nothing (the file is opened read-only), so :func:`prtbench.runner.prepare` can
+        call it before any work; a store of an older schema passes (it is migrated on append).
+        """
+        if self.path.is_dir() or self.path.exists():
+            ResultsStore(self.path, readonly=True)._connect().close()
+
+    def _read_schema(self, conn: sqlite3.Connection) -> tuple[str, ...]:
+        version = store_schema.stored_version(conn, self.path)
+        if version is None:
+            return COLUMNS  # an empty file: no rows
+        return store_schema.render_columns(conn, self.path, version=version, columns=COLUMNS)
 
     def _ensure_schema(self, conn: sqlite3.Connection) -> None:
         # The busy timeout does not cover every lock met here: switching a new file to WAL
@@ -191,38 +253,41 @@ class ResultsStore:
     def _create_schema(self, conn: sqlite3.Connection) -> None:
         if conn.execute("PRAGMA journal_mode").fetchone()[0].lower() != "wal":
             conn.execute("PRAGMA journal_mode = WAL")  # persistent: readers never block writers
-        columns = ", ".join(
-            f"{name} {_SQL_TYPES.get(name, 'TEXT')}" + (" NOT NULL" if name in ("method", "scene") else "")
-            for name in COLUMNS)
+        columns = ", ".join(_column_sql(name) for name in COLUMNS)
         conn.execute("BEGIN IMMEDIATE")  # outside the try: a failed BEGIN has nothing to roll back
         try:
+            version = store_schema.stored_version(conn, self.path)
             conn.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
             conn.execute(f"CREATE TABLE IF NOT EXISTS renders (id INTEGER PRIMARY KEY AUTOINCREMENT, {columns})")
             conn.execute("CREATE INDEX IF NOT EXISTS renders_by_name ON renders (method, scene, profile)")
             conn.execute("CREATE INDEX IF NOT EXISTS renders_by_run ON renders (run_id)")
-            conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-            version = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()[0]
+            if version is None:
+                conn.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+            else:
+                store_schema.render_columns(conn, self.path, version=version, columns=COLUMNS)
+                if version != SCHEMA_VERSION:
+                    store_schema.migrate(conn, json_fields=_JSON_FIELDS, to_json=_to_json)
             conn.execute("COMMIT")
         except BaseException:
             conn.execute("ROLLBACK")
             raise
-        if int(version) != SCHEMA_VERSION:
-            raise PrtbenchError(f"results store '{self.path}' has schema version {version}; this prtbench "
-                                f"reads version {SCHEMA_VERSION} (move the file aside or use --results)")
 
     def append(self, rows: Sequence[ResultRow]) -> None:
         """Insert ``rows`` in one transaction: all of them or, on any error, none."""
+        if self.readonly:
+            raise PrtbenchError(f"results store '{self.path}' was opened read-only")
         rows = list(rows)
         if not rows:
             return
+        values = [_row_values(row, number) for number, row in enumerate(rows)]  # before connecting
         insert = (f"INSERT INTO renders ({', '.join(COLUMNS)}) "
                   f"VALUES ({', '.join('?' for _ in COLUMNS)})")
         conn = self._connect()
         try:
             conn.execute("BEGIN IMMEDIATE")
             try:
-                for number, row in enumerate(rows):
-                    conn.execute(insert, _row_values(row, number))
+                for value in values:
+                    conn.execute(insert, value)
                 conn.execute("COMMIT")
             except BaseException:
                 conn.execute("ROLLBACK")
@@ -231,24 +296,37 @@ class ResultsStore:
             conn.close()
 
     def query(self, *, method: str | None = None, scene: str | None = None,
-              profile: str | None = None, run_id: str | None = None) -> list[ResultRow]:
+              profile: str | None = None, run_id: str | None = None,
+              status: str | None = None) -> list[ResultRow]:
         """Rows matching every given filter, in insertion order."""
-        filters = {"method": method, "scene": scene, "profile": profile, "run_id": run_id}
-        where = [(f"{name} = ?", value) for name, value in filters.items() if value is not None]
-        sql = f"SELECT {', '.join(COLUMNS)} FROM renders"
-        if where:
-            sql += " WHERE " + " AND ".join(clause for clause, _ in where)
+        if status is not None and status not in STATUSES:
+            raise UnknownNameError("result status", status, STATUSES)
         conn = self._connect()
         try:
+            columns = self._columns
+            filters = {"method": method, "scene": scene, "profile": profile, "run_id": run_id,
+                       "status": status}
+            where = [(f"{name} = ?", value) for name, value in filters.items() if value is not None]
+            if status is not None and "status" not in columns:  # an unmigrated store: all 'ok'
+                if status != "ok":
+                    return []
+                where = [w for w in where if not w[0].startswith("status")]
+            sql = f"SELECT {', '.join(columns)} FROM renders"
+            if where:
+                sql += " WHERE " + " AND ".join(clause for clause, _ in where)
+            if not conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'renders'").fetchone():
+                return []  # an empty file opened read-only
             records = conn.execute(sql + " ORDER BY id", [value for _, value in where]).fetchall()
         finally:
             conn.close()
-        return [ResultRow(**dict(zip(COLUMNS, record))) for record in records]
+        return [ResultRow(**dict(zip(columns, record))) for record in records]
 
     def count(self) -> int:
         """Number of stored rows."""
         conn = self._connect()
         try:
+            if not conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'renders'").fetchone():
+                return 0
             return conn.execute("SELECT COUNT(*) FROM renders").fetchone()[0]
         finally:
             conn.close()
@@ -258,8 +336,12 @@ def _row_values(row: ResultRow, number: int) -> tuple:
     if not isinstance(row, ResultRow):
         raise InvalidInputError(f"results row {number} is a {type(row).__name__}; accepted: ResultRow")
     values = []
+    # A non-finite metric is written as null; keep what it was (nan or ±inf) in the reason.
+    null_metrics = strict_json.non_finite_keys(row.metrics) if isinstance(row.metrics, Mapping) else []
     for name in COLUMNS:
         value = getattr(row, name)
+        if name == "status_reason" and null_metrics and not value:
+            value = f"{', '.join(null_metrics)} stored as null"
         if name in _JSON_FIELDS:
             try:
                 value = _to_json(value)
@@ -316,7 +398,7 @@ def git_sha(cwd: str | Path | None = None) -> str:
 
 
 DEFAULT_COLUMNS = ("method", "scene", "light", "view", "size", "profile", "psnr", "psnr_masked",
-                   "ssim_masked", "flip_masked", "frame_ms", "memory_bytes")
+                   "ssim_masked", "flip_masked", "frame_ms", "memory_bytes", "status")
 
 
 def _format_value(value) -> str:

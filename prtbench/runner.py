@@ -2,13 +2,19 @@
 timings → memory → files and result rows.
 
 Everything a user can get wrong (method, scene, variant, light, profile, reference kind,
-``--set`` keys and values, resolution, view count) is validated by :func:`prepare` before any
-cache entry, output file or result row is written.
+``--set`` keys and values, resolution, view count, and every output location: ``--out``,
+``--json``, ``--results``, the cache) is validated by :func:`prepare` before any cache entry,
+output file or result row is written.
+
+A view whose measurement is meaningless — a black or non-finite method image, a black
+reference, an empty geometry mask, a non-finite masked metric — is still stored, with status
+``degenerate`` and the reason (:func:`prtbench.degeneracy.degenerate_reason`); the CLI
+then exits 1.
 """
 
 from __future__ import annotations
 
-import json
+import math
 import sys
 import time
 import uuid
@@ -20,7 +26,9 @@ from typing import Any
 import numpy as np
 
 from . import config as config_mod
+from . import strict_json
 from .errors import InvalidInputError, UnknownNameError
+from .degeneracy import degenerate_reason
 from .method import METHODS, Method, load_or_precompute
 from .profiles import Profile, get_profile
 from .scene import SCENES, VARIANTS, Scene, get_scene
@@ -70,6 +78,9 @@ class ViewResult:
     frame_ms_p95: float
     files: dict[str, str]
     timing_source: str = "timer-query"
+    #: ``ok`` or ``degenerate`` (see :func:`degenerate_reason`) and why.
+    status: str = "ok"
+    status_reason: str = ""
 
 
 @dataclass
@@ -91,6 +102,21 @@ class RunSummary:
     precompute_cached: bool
     run_id: str
     views: list[ViewResult]
+    #: The artifact was rebuilt from a corrupt cache file; ``precompute_s`` is the original
+    #: build's time when it was recorded, ``precompute_rebuild_s`` the rebuild's.
+    precompute_rebuilt: bool = False
+    precompute_rebuild_s: float | None = None
+
+    @property
+    def status(self) -> str:
+        """``degenerate`` if any view is, else ``ok``."""
+        return "degenerate" if any(v.status == "degenerate" for v in self.views) else "ok"
+
+    @property
+    def status_reason(self) -> str:
+        """The degenerate views and why (``view 0: method image is all black``)."""
+        return "; ".join(f"view {v.view}: {v.status_reason}" for v in self.views
+                         if v.status == "degenerate")
 
     def mean_metrics(self) -> dict[str, float]:
         keys = self.views[0].metrics.keys() if self.views else []
@@ -100,6 +126,7 @@ class RunSummary:
         out = asdict(self)
         out["mean_metrics"] = self.mean_metrics()
         out["mean_frame_ms"] = float(np.mean([v.frame_ms for v in self.views])) if self.views else None
+        out["status"], out["status_reason"] = self.status, self.status_reason
         return out
 
 
@@ -125,6 +152,27 @@ def _reference_method(kind: str, profile: str) -> tuple[type[Method], Any] | Non
     return cls, cls.make_config(profile=profile)
 
 
+def resolve_views(scene: Scene, profile: Profile, views: int | None) -> Scene:
+    """``scene`` keeping ``views`` trajectory views (None: the profile's count, capped by the
+    scene's); a count outside 1..len(trajectory) raises. Shared by ``run`` and ``reference``."""
+    n_views = views if views is not None else min(profile.views, len(scene.trajectory))
+    return scene.with_views(n_views)
+
+
+def check_outputs(request: RunRequest) -> None:
+    """Every location ``request`` will write to is usable (see :mod:`prtbench.outputs`)."""
+    from . import outputs
+    from .results import default_path
+
+    if request.write_images and request.out_dir is not None:
+        outputs.check_folder("--out", request.out_dir)
+    if request.json_path is not None:
+        outputs.check_file("--json", request.json_path)
+    if request.store_results:
+        outputs.check_results_store("--results", request.results_path or default_path())
+    outputs.check_cache()
+
+
 def prepare(request: RunRequest) -> PreparedRun:
     """Validate and resolve a request; writes nothing."""
     from .lights import get_light
@@ -138,12 +186,12 @@ def prepare(request: RunRequest) -> PreparedRun:
     reference_method = _reference_method(request.reference, request.profile)
     scene = get_scene(request.scene, variant=request.variant, **dict(request.scene_params))
     light = get_light(request.light or scene.default_light)
-    n_views = request.views if request.views is not None else min(profile.views, len(scene.trajectory))
-    scene = scene.with_views(n_views)
+    scene = resolve_views(scene, profile, request.views)
     width, height = request.resolution or (profile.width, profile.height)
     method_cls.validate(scene, config)
     if reference_method is not None:
         reference_method[0].validate(scene, reference_method[1])
+    check_outputs(request)
     return PreparedRun(request, method_cls, config, profile, scene, light, width, height,
                        reference_method)
 
@@ -189,7 +237,9 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                f"views={len(scene.trajectory)} res={width}x{height} reference={req.reference}")
     artifact = load_or_precompute(method_cls, scene, config, progress=progress)
     _log(echo, f"[prtbench] precompute: {artifact.precompute_s:.1f} s"
-               f"{' (cached)' if artifact.cache_hit else ''}, {artifact.nbytes / 2**20:.2f} MiB")
+               f"{' (cached)' if artifact.cache_hit else ''}"
+               f"{f' (rebuilt from a corrupt cache file in {artifact.rebuild_s:.2f} s)' if artifact.rebuilt else ''}"
+               f", {artifact.nbytes / 2**20:.2f} MiB")
     renderer = method_cls.renderer(scene, artifact, config, width=width, height=height)
     ref_renderer = None
     bounces = int(getattr(config, "bounces", 0))
@@ -217,7 +267,13 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
             mask = geometry_mask(scene, view, width, height)
             test_d = imageio.display(image, exposure=scene.exposure)
             ref_d = imageio.display(ref_image, exposure=scene.exposure)
-            values = metrics.compute_metrics(test_d, ref_d, mask=mask)
+            if np.isfinite(image).all():
+                values = metrics.compute_metrics(test_d, ref_d, mask=mask)
+            else:  # the metrics refuse non-finite pixels: nothing here is measured
+                values = {key: math.nan for name in metrics.LDR_METRICS
+                          for key in (name, f"{name}_masked")}
+                test_d = np.nan_to_num(test_d, nan=0.0)  # for the PNGs
+            reason = degenerate_reason(image, test_d, ref_d, mask, values)
             times = renderer.frame_time(view, light, warmup=prepared.profile.timing_warmup,
                                         frames=prepared.profile.timing_frames)
             files: dict[str, str] = {}
@@ -231,9 +287,9 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                          (("exr", ".exr"), ("png", ".png"), ("reference", "-reference.png"),
                           ("flip", "-flip.png"))}
             view_results.append(ViewResult(index, values, times.median_ms, times.p95_ms, files,
-                                           times.source))
+                                           times.source, "degenerate" if reason else "ok", reason))
             _log(echo, f"[prtbench] view {index}: psnr_masked={values.get('psnr_masked', float('nan')):.2f} dB "
-                       f"frame={times.median_ms:.3f} ms")
+                       f"frame={times.median_ms:.3f} ms{f' DEGENERATE: {reason}' if reason else ''}")
         memory = renderer.memory_bytes()
     finally:
         renderer.release()
@@ -245,24 +301,19 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         height=height, reference=req.reference, reference_spp=ref_spp,
         reference_noise_display=ref_noise, renderer=renderer.renderer_string,
         memory_bytes=memory, precompute_s=artifact.precompute_s,
-        precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results)
+        precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results,
+        precompute_rebuilt=artifact.rebuilt, precompute_rebuild_s=artifact.rebuild_s)
     if req.store_results:
-        _store(summary, scene, results_path=req.results_path)
+        _store(summary, scene, results_path=req.results_path,
+               rebuilt_note="" if artifact.original_time_known else
+               "precompute rebuilt from a corrupt cache file; precompute_s is the rebuild's time")
     if out_dir is not None or req.json_path is not None:
         json_path = Path(req.json_path) if req.json_path else out_dir / "summary.json"
         from .cache import atomic_path
 
         with atomic_path(json_path) as tmp:
-            tmp.write_text(json.dumps(summary.to_json(), indent=2, default=_json_default))
+            tmp.write_text(strict_json.dumps(summary.to_json(), indent=2))
     return summary
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    return str(obj)
 
 
 def device_description() -> str:
@@ -279,7 +330,8 @@ def device_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores"
 
 
-def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None) -> None:
+def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None,
+           rebuilt_note: str = "") -> None:
     from .results import ResultRow, ResultsStore, git_sha
 
     sha = git_sha()
@@ -287,19 +339,23 @@ def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None) -> N
     rows = []
     for v in summary.views:
         view = scene.trajectory.views[v.view]
+        nulls = strict_json.non_finite_keys(v.metrics)
+        reason = "; ".join(r for r in (v.status_reason, f"{', '.join(nulls)} stored as null" if nulls else "",
+                                       rebuilt_note) if r)
         rows.append(ResultRow(
-            method=summary.method, config=json.dumps(summary.config, sort_keys=True),
+            method=summary.method, config=summary.config,
             scene=summary.scene, scene_variant=summary.variant, light=summary.light,
-            view=v.view, view_json=json.dumps(asdict(view)), width=summary.width,
+            view=v.view, view_json=asdict(view), width=summary.width,
             height=summary.height, reference_kind=summary.reference,
-            metrics=json.dumps(v.metrics, default=_json_default), frame_ms=v.frame_ms,
+            metrics=dict(v.metrics), frame_ms=v.frame_ms,
             frame_ms_p95=v.frame_ms_p95, memory_bytes=summary.memory_bytes,
             precompute_s=summary.precompute_s, renderer=summary.renderer,
             device=device_description(), git_sha=sha, profile=summary.profile,
             run_id=summary.run_id, timestamp=stamp, reference_spp=summary.reference_spp,
             reference_noise=summary.reference_noise_display,
             scene_triangles=scene.n_triangles, scene_params=dict(scene.params),
-            timing_source=v.timing_source))
+            timing_source=v.timing_source, status=v.status, status_reason=reason,
+            precompute_rebuilt=summary.precompute_rebuilt))
     ResultsStore(results_path).append(rows)
 
 
@@ -324,5 +380,7 @@ def format_summary(summary: RunSummary, *, metric_names: Sequence[str] = (
              f"{f' (spp {summary.reference_spp}, noise {summary.reference_noise_display:.4f})' if summary.reference_spp else ''}\n"
              f"timing={summary.views[0].timing_source if summary.views else '-'} "
              f"memory={summary.memory_bytes / 2**20:.3f} MiB precompute={summary.precompute_s:.1f} s"
-             f"{' (cached)' if summary.precompute_cached else ''} renderer={summary.renderer}")
+             f"{' (cached)' if summary.precompute_cached else ''}"
+             f"{' (rebuilt)' if summary.precompute_rebuilt else ''} renderer={summary.renderer}"
+             f"{f'{chr(10)}status={summary.status}: {summary.status_reason}' if summary.status != 'ok' else ''}")
     return facts + "\n" + "\n".join(lines)

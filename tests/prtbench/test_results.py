@@ -41,7 +41,9 @@ def test_round_trip_keeps_every_field(tmp_path):
     store.append(rows)
     back = store.query()
     assert back[0] == rows[0]
-    assert back[1].metrics["psnr"] == math.inf and math.isnan(back[1].metrics["flip_masked"])
+    # Strict JSON: non-finite metrics come back as None, and the reason keeps what they were.
+    assert back[1].metrics["psnr"] is None and back[1].metrics["flip_masked"] is None
+    assert back[1].status == "ok" and back[1].status_reason == "psnr=inf, flip_masked=nan stored as null"
     assert back[1].metrics["mae"] == 0.25 and back[1].memory_bytes == 7 and back[1].frame_ms is None
     assert back[1].reference_kind == "method:vertex"
     assert store.count() == 2
@@ -88,7 +90,8 @@ def test_load_flattens_metrics(tmp_path):
     frame = results.load(path)
     assert len(frame) == 2
     assert list(frame["method"]) == ["vertex", "texture"]
-    assert frame["metric_psnr"].tolist() == [31.5, math.inf]
+    assert frame["metric_psnr"].iloc[0] == 31.5 and math.isnan(frame["metric_psnr"].iloc[1])  # stored as null
+    assert frame["status"].tolist() == ["ok", "ok"]
     assert frame["metric_ssim"].iloc[0] == 0.93 and math.isnan(frame["metric_ssim"].iloc[1])
     assert frame["metric_flip"].iloc[1] == 0.1
     assert frame["frame_ms"].iloc[0] == 1.25 and frame["width"].iloc[0] == 64
