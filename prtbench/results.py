@@ -97,6 +97,16 @@ class ResultRow:
     precompute_rebuilt : bool
         The artifact was rebuilt because its cache file was corrupt or missing; when its
         original time was recorded ``precompute_s`` is that time, else the rebuild's.
+    covered_pixels : int or None
+        Pixels of the view covered by geometry (the masked metrics' support); the
+        operation-count cost model scales per-pixel work by it.
+    scene_vertices : int or None
+        Vertex count of the rendered scene (per-vertex work of the cost model).
+    workers : int
+        How many workers measured concurrently when this row was measured (1 for a plain
+        ``prtbench run``): concurrent workers on few cores distort frame times.
+    cell_key : str
+        The sweep cell this row measures (:mod:`prtbench.tradeoff`), empty outside sweeps.
     """
 
     method: str
@@ -128,6 +138,10 @@ class ResultRow:
     status: str = "ok"
     status_reason: str = ""
     precompute_rebuilt: bool = False
+    covered_pixels: int | None = None
+    scene_vertices: int | None = None
+    workers: int = 1
+    cell_key: str = ""
 
     def __post_init__(self) -> None:
         for name in _JSON_FIELDS:  # rows read back from text, or built by hand from JSON
@@ -143,11 +157,14 @@ class ResultRow:
             raise UnknownNameError("result status", self.status, STATUSES)
         self.status_reason = self.status_reason or ""
         self.precompute_rebuilt = bool(self.precompute_rebuilt)  # SQLite gives 0/1
+        self.workers = int(self.workers) if self.workers is not None else 1
+        self.cell_key = self.cell_key or ""
 
 
 _SQL_TYPES = {"view": "INTEGER", "width": "INTEGER", "height": "INTEGER", "memory_bytes": "INTEGER",
               "reference_spp": "INTEGER", "scene_triangles": "INTEGER", "frame_ms": "REAL", "frame_ms_p95": "REAL",
-              "precompute_s": "REAL", "reference_noise": "REAL", "precompute_rebuilt": "INTEGER"}
+              "precompute_s": "REAL", "reference_noise": "REAL", "precompute_rebuilt": "INTEGER",
+              "covered_pixels": "INTEGER", "scene_vertices": "INTEGER", "workers": "INTEGER"}
 COLUMNS = tuple(f.name for f in dataclasses.fields(ResultRow))
 
 

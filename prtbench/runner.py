@@ -81,6 +81,8 @@ class ViewResult:
     #: ``ok`` or ``degenerate`` (see :func:`degenerate_reason`) and why.
     status: str = "ok"
     status_reason: str = ""
+    #: Pixels covered by geometry (the masked metrics' support).
+    covered_pixels: int | None = None
 
 
 @dataclass
@@ -106,6 +108,8 @@ class RunSummary:
     #: build's time when it was recorded, ``precompute_rebuild_s`` the rebuild's.
     precompute_rebuilt: bool = False
     precompute_rebuild_s: float | None = None
+    #: Why ``precompute_s`` is not the original build's time (empty when it is).
+    rebuilt_note: str = ""
 
     @property
     def status(self) -> str:
@@ -287,7 +291,8 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                          (("exr", ".exr"), ("png", ".png"), ("reference", "-reference.png"),
                           ("flip", "-flip.png"))}
             view_results.append(ViewResult(index, values, times.median_ms, times.p95_ms, files,
-                                           times.source, "degenerate" if reason else "ok", reason))
+                                           times.source, "degenerate" if reason else "ok", reason,
+                                           int(np.count_nonzero(mask))))
             _log(echo, f"[prtbench] view {index}: psnr_masked={values.get('psnr_masked', float('nan')):.2f} dB "
                        f"frame={times.median_ms:.3f} ms{f' DEGENERATE: {reason}' if reason else ''}")
         memory = renderer.memory_bytes()
@@ -303,10 +308,13 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         memory_bytes=memory, precompute_s=artifact.precompute_s,
         precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results,
         precompute_rebuilt=artifact.rebuilt, precompute_rebuild_s=artifact.rebuild_s)
+    summary.rebuilt_note = ("" if artifact.original_time_known else
+                            "precompute rebuilt from a corrupt cache file; precompute_s is the "
+                            "rebuild's time")
     if req.store_results:
-        _store(summary, scene, results_path=req.results_path,
-               rebuilt_note="" if artifact.original_time_known else
-               "precompute rebuilt from a corrupt cache file; precompute_s is the rebuild's time")
+        from .results import ResultsStore
+
+        ResultsStore(req.results_path).append(summary_rows(summary, scene))
     if out_dir is not None or req.json_path is not None:
         json_path = Path(req.json_path) if req.json_path else out_dir / "summary.json"
         from .cache import atomic_path
@@ -330,9 +338,30 @@ def device_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores"
 
 
-def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None,
-           rebuilt_note: str = "") -> None:
-    from .results import ResultRow, ResultsStore, git_sha
+def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
+                 cell_key: str = "") -> list:
+    """The result rows (one per view) of a run, without storing them.
+
+    A sweep's workers return these to the client, which alone writes the store.
+
+    Parameters
+    ----------
+    summary : RunSummary
+        What :func:`execute` returned.
+    scene : Scene
+        The prepared scene of that run (its views and counts go into the rows).
+    workers : int
+        Workers measuring concurrently (recorded: they distort frame times).
+    cell_key : str
+        The sweep cell's key, empty outside sweeps.
+
+    Returns
+    -------
+    list of prtbench.results.ResultRow
+    """
+    from .results import ResultRow, git_sha
+
+    rebuilt_note = summary.rebuilt_note
 
     sha = git_sha()
     stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
@@ -355,8 +384,9 @@ def _store(summary: RunSummary, scene: Scene, *, results_path: Path | None,
             reference_noise=summary.reference_noise_display,
             scene_triangles=scene.n_triangles, scene_params=dict(scene.params),
             timing_source=v.timing_source, status=v.status, status_reason=reason,
-            precompute_rebuilt=summary.precompute_rebuilt))
-    ResultsStore(results_path).append(rows)
+            precompute_rebuilt=summary.precompute_rebuilt, covered_pixels=v.covered_pixels,
+            scene_vertices=scene.n_vertices, workers=workers, cell_key=cell_key))
+    return rows
 
 
 def run(request: RunRequest, *, progress: bool = True, echo: bool = True) -> RunSummary:

@@ -21,7 +21,7 @@ from prtbench.cache import cached_arrays
 from prtbench.errors import InvalidInputError, PrtbenchError, UnknownNameError
 from prtbench.method import METHODS, Artifact, load_or_precompute
 from prtbench.results import COLUMNS, SCHEMA_VERSION, ResultRow, ResultsStore, load
-from prtbench.runner import RunRequest, degenerate_reason, execute, prepare
+from prtbench.runner import RunRequest, degenerate_reason, execute, geometry_mask, prepare
 
 
 def _no_constant(name: str):
@@ -115,6 +115,11 @@ def test_a_normal_run_is_ok(tmp_path):
     row = ResultsStore(request.results_path).query()[0]
     assert row.status == "ok" and row.status_reason == "" and not row.precompute_rebuilt
     assert row.metrics["psnr_masked"] > 20  # vertex PRT on a smooth scene, as in test_cli
+    # The cost model's inputs: the geometry mask's pixel count and the scene's vertex count.
+    scene = prepare(request).scene
+    mask = geometry_mask(scene, scene.trajectory.views[0], row.width, row.height)
+    assert row.covered_pixels == int(mask.sum()) > 0 and row.scene_vertices == scene.n_vertices
+    assert row.workers == 1 and row.cell_key == ""
     assert json.loads(request.json_path.read_text(), parse_constant=_no_constant)["status"] == "ok"
 
 
@@ -375,3 +380,29 @@ def test_run_row_records_the_rebuild(tmp_path, monkeypatch):
     rows = ResultsStore(request.results_path).query()
     assert [r.precompute_rebuilt for r in rows] == [False, True]
     assert rows[1].precompute_s == pytest.approx(rows[0].precompute_s)
+
+
+def test_schema_3_store_gains_the_trade_off_columns_on_append(tmp_path):
+    """Schema 3 → 4: covered pixels, vertex count, workers and cell key are added; old rows
+    keep their values and read back as one worker, no cell key, unknown coverage."""
+    path = tmp_path / "v3.sqlite"
+    ResultsStore(path).append([ResultRow(method="vertex", scene="plane", profile="smoke",
+                                         metrics={"psnr": 20.0})])
+    conn = sqlite3.connect(path)
+    for column in ("covered_pixels", "scene_vertices", "workers", "cell_key"):
+        conn.execute(f"ALTER TABLE renders DROP COLUMN {column}")
+    conn.execute("UPDATE meta SET value = '3' WHERE key = 'schema_version'")
+    conn.commit()
+    conn.close()
+    old = ResultsStore(path, readonly=True).query()
+    assert old[0].workers == 1 and old[0].cell_key == "" and old[0].covered_pixels is None
+    ResultsStore(path).append([ResultRow(method="vertex", scene="plane", profile="smoke",
+                                         covered_pixels=1234, scene_vertices=4, workers=2,
+                                         cell_key="abc")])
+    rows = ResultsStore(path, readonly=True).query()
+    assert [(r.covered_pixels, r.scene_vertices, r.workers, r.cell_key) for r in rows] == [
+        (None, None, 1, ""), (1234, 4, 2, "abc")]
+    assert rows[0].metrics["psnr"] == 20.0
+    conn = sqlite3.connect(path)
+    assert conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone() == (str(SCHEMA_VERSION),)
+    conn.close()
