@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
@@ -81,7 +81,7 @@ class DataDrivenConfig:
                                   low=16, high=8192)
     env_shadow_resolution: int = knob(512, "Shadow tile side of each median-cut light.",
                                       low=16, high=4096)
-    seed: int = knob(0, "Seed of points, lights and paths.")
+    seed: int = seed_knob("Seed of points, lights and paths.")
 
 
 def basis_textures(basis: Basis, lightmap, *, layout: str) -> np.ndarray:

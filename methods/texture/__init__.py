@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.scene import Texture
@@ -75,7 +75,7 @@ class TextureConfig:
     bounce_light: str = knob(
         "", "Light baked into the bounce textures (registry name or HDR path; empty: the "
             "scene's default light). Rendering under another light is an error.")
-    seed: int = knob(0, "Seed of the per-texel ray patterns.")
+    seed: int = seed_knob("Seed of the per-texel ray patterns.")
 
 
 class TextureMethod(Method):
