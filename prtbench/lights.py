@@ -67,7 +67,7 @@ NEGATIVE_RINGING_TOLERANCE = 0.05
 #: Largest accepted texel radiance: float32's maximum over a 2³² headroom for the float32 sums
 #: the reference makes of it (Mitsuba's envmap luminance CDF over up to 2²⁷ texels, a sample's
 #: weight ∫L dω ≤ 4π·max, a film pixel's sum of up to 2²¹ samples per pass: 4π·2²¹ < 2²⁵), so
-#: a light that fits can never overflow to inf in the reference or the SH projection.
+#: sums stay finite (a reference lit by a texel at this maximum measured finite, peak 1.4e27).
 MAX_RADIANCE = float(np.finfo(np.float32).max) / 2.0**32
 #: Rec. 709 luminance weights, as Mitsuba's ``luminance()``.
 LUMINANCE_WEIGHTS = np.array([0.212671, 0.715160, 0.072169])

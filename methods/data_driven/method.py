@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.config import knob, seed_knob
+from prtbench.config import check_memory, knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
@@ -144,6 +144,13 @@ class DataDrivenPRT(Method):
                 raise InvalidInputError(
                     f"method 'data-driven' takes constant kd per object; '{obj.name}' in scene "
                     f"'{scene.name}' is textured")
+        # The dataset's indirect part (N, T, 3) float32 and the basis fit's float64 copy of it
+        # (36 B per configuration and texel), plus the basis textures (12 B per element).
+        texels = config.lightmap_resolution ** 2
+        check_memory(f"method 'data-driven' configurations={config.configurations} x "
+                     f"lightmap_resolution={config.lightmap_resolution}",
+                     36 * config.configurations * texels + 12 * config.basis * texels,
+                     accepted="fewer configurations or a smaller lightmap_resolution")
         if config.light_family == "env-rotations":
             from prtbench.lights import get_light
 

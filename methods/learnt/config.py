@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prtbench.config import knob, seed_knob
+from prtbench.config import check_memory, knob, seed_knob
 
 #: What changes the trained network. Everything else (renderer, product, GLSL limit) only
 #: changes how the same weights are evaluated, so it is left out of the training cache key.
@@ -114,3 +114,19 @@ PROFILE_OVERRIDES = {
     "paper": {"samples": 1_000_000, "rays_per_point": 1024, "object_balance": 0.0,
               "epochs": 200},
 }
+
+
+def training_bytes(config: LearntConfig) -> float:
+    """Estimated peak bytes of training: the float32 samples (points, normals, n² targets) held
+    twice (numpy and torch), and per mini-batch row the activations, gradients and leaky-ReLU
+    masks of every hidden layer (16 B per neuron)."""
+    per_sample = 2 * (24 + 4 * config.sh_bands ** 2)
+    return float(config.samples * per_sample
+                 + config.batch_size * config.hidden * config.layers * 16)
+
+
+def check_training_memory(method: str, config: LearntConfig) -> None:
+    """One-line error when :func:`training_bytes` exceeds this machine's memory."""
+    check_memory(f"method '{method}' samples={config.samples}, batch_size={config.batch_size}, "
+                 f"hidden={config.hidden}, layers={config.layers}", training_bytes(config),
+                 accepted="fewer samples or a smaller batch_size x hidden x layers")
