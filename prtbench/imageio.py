@@ -8,6 +8,7 @@ All writes are atomic (temporary file, then rename).
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import sys
@@ -25,12 +26,13 @@ from .errors import InvalidInputError
 
 @contextlib.contextmanager
 def _library_output() -> Iterator[list[str]]:
-    """Capture what C/C++ code writes to file descriptors 2 and 1 inside the block.
+    """Capture what libraries write to stderr and stdout inside the block.
 
-    OpenEXR's C++ library reports corrupt chunks on stderr itself, and its Python binding adds
-    a warning on stdout (then raises a vaguer exception); either would break our one-line
-    error. The captured lines (stderr's first) are appended to the yielded list when the block
-    ends, so callers fold them into their message.
+    OpenEXR's C++ library reports corrupt chunks on file descriptor 2 itself, and its Python
+    binding prints a warning through ``sys.stdout`` (then raises a vaguer exception); either
+    would break our one-line error. The captured lines (file descriptors 2 and 1 first, then
+    Python's streams) are appended to the yielded list when the block ends, so callers fold
+    them into their message.
     """
     lines: list[str] = []
     with contextlib.ExitStack() as stack:
@@ -45,17 +47,23 @@ def _library_output() -> Iterator[list[str]]:
             sink = stack.enter_context(tempfile.TemporaryFile())
             os.dup2(sink.fileno(), fd)
             sinks.append((fd, stream, saved, sink))
+        # The binding also prints through Python's own sys.stdout / sys.stderr objects.
+        python_out = stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
+        python_err = stack.enter_context(contextlib.redirect_stderr(io.StringIO()))
         try:
             yield lines
         finally:
+            texts = []
             for fd, stream, saved, sink in sinks:
                 if stream is not None:
                     stream.flush()
                 os.dup2(saved, fd)
                 os.close(saved)
                 sink.seek(0)
-                text = sink.read().decode("utf-8", "replace")
-                lines.extend(line.strip() for line in text.splitlines() if line.strip())
+                texts.append(sink.read().decode("utf-8", "replace"))
+            texts += [python_err.getvalue(), python_out.getvalue()]
+            lines.extend(line.strip() for text in texts for line in text.splitlines()
+                         if line.strip())
 
 
 def _exr_error(path: Path, exc: BaseException, lines: list[str]) -> InvalidInputError:
