@@ -20,9 +20,13 @@ the reference; RMS(A − B) over geometry pixels, scaled to the full spp, estima
 reference's own per-pixel Monte-Carlo error (``noise_rmse`` on linear radiance,
 ``noise_rmse_display`` on display images), so metrics are never reported tighter than that.
 
+Cached EXRs carry their metadata (spp, noise, variant, ...) in the header together with a
+SHA-256 over the pixels and that metadata (:func:`reference_checksum`): an entry whose checksum
+does not match is corrupt, said on stderr and rendered again, never trusted.
+
 Variant: ``$PRTBENCH_MITSUBA_VARIANT`` if set, else the first of ``cuda_ad_rgb``,
 ``llvm_ad_rgb`` (with ``$DRJIT_LIBLLVM_PATH`` pointed at Debian's libLLVM-19 when unset),
-``scalar_rgb`` that works.
+``scalar_rgb`` that works; :func:`check_variant` validates it before any work.
 """
 
 from __future__ import annotations
