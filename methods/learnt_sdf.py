@@ -43,7 +43,7 @@ from prtbench.scene import Texture
 from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
 from methods import SHADER_DIR
-from methods.learnt.config import LearntConfig
+from methods.learnt.config import LearntConfig, check_training_memory
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
 MODEL_VERSION = 1
@@ -271,6 +271,7 @@ class LearntSdf(Method):
         if config.hidden % 4:
             raise InvalidInputError(f"learnt-sdf hidden={config.hidden}; accepted: multiples of "
                                     "4 (the GLSL path packs weights into mat4 blocks)")
+        check_training_memory(cls.name, config)
         if config.device == "cuda":
             from methods.learnt.network import resolve_device
 

@@ -30,13 +30,14 @@ each T_b ceil(3n²/4) layers, at 4 (float32) or 2 (float16) bytes per channel.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import check_memory, knob, memory_budget, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.scene import Texture
@@ -75,7 +76,7 @@ class TextureConfig:
     bounce_light: str = knob(
         "", "Light baked into the bounce textures (registry name or HDR path; empty: the "
             "scene's default light). Rendering under another light is an error.")
-    seed: int = knob(0, "Seed of the per-texel ray patterns.")
+    seed: int = seed_knob("Seed of the per-texel ray patterns.")
 
 
 class TextureMethod(Method):
@@ -115,6 +116,16 @@ class TextureMethod(Method):
             raise InvalidInputError(
                 f"padding={config.padding} with texture_resolution={config.texture_resolution}; "
                 "accepted: padding <= texture_resolution / 8")
+        # Per texel and texture: G-buffer (29 B), float64 points and normals (48 B), then per
+        # coefficient and transfer texture the float64 transfer, its dilated copy and the
+        # float32 result (28 B).
+        sets = len(scene.objects) if config.texture_sets else 1
+        per_texel = 80 + 28 * config.sh_bands**2 * (1 + config.bounces)
+        res = config.texture_resolution
+        fits = int(math.sqrt(memory_budget() / (sets * per_texel)))
+        check_memory(f"method '{cls.name}' texture_resolution={res} ({sets} texture(s), "
+                     f"sh_bands={config.sh_bands}, bounces={config.bounces})",
+                     sets * res * res * per_texel, accepted=f"texture_resolution <= {fits}")
         if config.bounces > 0:
             cls.bake_light(scene, config)  # unknown names fail before any work
 
