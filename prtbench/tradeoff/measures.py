@@ -217,6 +217,22 @@ def surface_samples(scene: "Scene", n_points: int, *, seed: int = 0
 
 # --- visibility --------------------------------------------------------------------------------
 
+def occluded_fraction(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
+                      rays_per_point: int = 256, seed: int = 0) -> np.ndarray:
+    """Fraction of cosine-weighted hemisphere rays about ``normals`` that hit geometry, (N,).
+
+    Rays are stratified (a shifted Fibonacci lattice through Malley's method, spun per point,
+    as in :mod:`prtbench.transfer`) and leave from origins offset along the normal.
+    """
+    n = len(points)
+    pattern = RayPattern(n, rays_per_point, seed)
+    unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    dirs = pattern.world_directions(tangent_frames(unit, pattern.angle_of_point), slice(0, n))
+    origins = offset_origins(points, unit, diagonal=tracer.diagonal)
+    hit = tracer.occluded(np.repeat(origins, rays_per_point, axis=0), dirs.reshape(-1, 3))
+    return hit.reshape(n, rays_per_point).mean(axis=1)
+
+
 def occlusion(scene: "Scene", *, n_points: int = 4096, rays_per_point: int = 256, seed: int = 0,
               tracer: Tracer | None = None) -> dict[str, Any]:
     """Occluded fraction of the cosine-weighted hemisphere at area-uniform surface points.
@@ -233,12 +249,8 @@ def occlusion(scene: "Scene", *, n_points: int = 4096, rays_per_point: int = 256
     """
     tracer = tracer or Tracer.from_scene(scene)
     samples = surface_samples(scene, n_points, seed=seed)
-    pattern = RayPattern(n_points, rays_per_point, seed)
-    frames = tangent_frames(samples["face_normals"], pattern.angle_of_point)
-    dirs = pattern.world_directions(frames, slice(0, n_points))
-    origins = offset_origins(samples["points"], samples["face_normals"], diagonal=tracer.diagonal)
-    hit = tracer.occluded(np.repeat(origins, rays_per_point, axis=0), dirs.reshape(-1, 3))
-    frac = hit.reshape(n_points, rays_per_point).mean(axis=1)
+    frac = occluded_fraction(tracer, samples["points"], samples["face_normals"],
+                             rays_per_point=rays_per_point, seed=seed)
     objects = tracer.object_of_face[samples["face"]]
     per_object = {o.name: float(frac[objects == i].mean())
                   for i, o in enumerate(scene.objects) if np.any(objects == i)}
