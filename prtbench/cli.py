@@ -196,7 +196,11 @@ def _analyze(args: argparse.Namespace) -> int:
 
     # Every input is checked before any measurement runs or anything is written.
     check_light_changes(args.light_changes)
-    if not 0.0 < args.target < 1.0:
+    try:
+        target = float(args.target)
+    except ValueError:
+        target = float("nan")
+    if not 0.0 < target < 1.0:  # NaN fails too
         raise PrtbenchError(f"--target {args.target}; accepted: a relative error in (0, 1), e.g. 0.01")
     scene = get_scene(args.scene, variant=args.variant,
                       **parse_overrides(args.scene_param or []))
@@ -205,7 +209,7 @@ def _analyze(args: argparse.Namespace) -> int:
         outputs.check_file("--json", Path(args.json))
     if not args.no_render:
         outputs.check_cache()
-    analysis = analyze_scene(scene, light, light_changes=args.light_changes, target=args.target,
+    analysis = analyze_scene(scene, light, light_changes=args.light_changes, target=target,
                              render_bounces=not args.no_render, progress=not args.quiet)
     print(format_analysis(analysis))
     if args.json:
@@ -289,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--variant", default="diffuse", help="material variant: diffuse or glossy")
     p.add_argument("--light", default=None, help="light name or .exr/.hdr path (default: the scene's)")
     p.add_argument("--light-changes", default="none", help="none, rotate or family")
-    p.add_argument("--target", type=float, default=0.01, help="target relative lighting error")
+    p.add_argument("--target", default="0.01", help="target relative lighting error (default 0.01)")
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
     p.add_argument("--no-render", action="store_true", help="skip the Mitsuba interreflection renders")
     p.add_argument("--json", default=None, help="also write the analysis here (strict JSON)")

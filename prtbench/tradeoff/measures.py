@@ -195,7 +195,8 @@ def surface_samples(scene: "Scene", n_points: int, *, seed: int = 0
     -------
     dict with ``face`` (N,) int64 index into ``Scene.merged()`` faces, ``bary`` (N, 3) float64
     barycentric weights of the face's three vertices, ``points`` (N, 3), ``face_normals`` (N, 3)
-    geometric unit normals and ``normals`` (N, 3) interpolated unit shading normals.
+    geometric unit normals, ``normals`` (N, 3) interpolated unit shading normals, and ``area``
+    (float) the total surface area.
     """
     positions, normals, faces, _ = scene.merged()
     p = positions.astype(np.float64)
@@ -333,8 +334,7 @@ def interreflection(scene: "Scene", light: "EnvironmentLight", *, width: int = 1
     lum = [np.asarray(r.image, dtype=np.float64) @ LUMINANCE_WEIGHTS for r in refs]
     covered = (lum[0] > 0) | (lum[1] > 0)
     n = max(int(covered.sum()), 1)
-    direct, total = float(lum[0][covered].mean()) if covered.any() else 0.0, \
-        float(lum[1][covered].mean()) if covered.any() else 0.0
+    direct, total = (float(image[covered].sum()) / n for image in lum)
     # Standard error of the ratio from the references' own per-pixel noise estimates.
     stderr = (math.hypot(refs[0].noise_rmse, refs[1].noise_rmse) / math.sqrt(n)
               / max(direct, 1e-300))

@@ -198,7 +198,8 @@ def test_cli_writes_strict_json_with_every_field(tmp_path, capsys):
     (["--scene", "plants", "--light", "skyy"], "unknown light 'skyy'"),
     (["--scene", "plants", "--variant", "shiny"], "unknown variant 'shiny'"),
     (["--scene", "plants", "--light-changes", "often"], "unknown light change 'often'"),
-    (["--scene", "plants", "--target", "2"], "--target 2.0"),
+    (["--scene", "plants", "--target", "2"], "--target 2"),
+    (["--scene", "plants", "--target", "often"], "--target often"),
     (["--scene", "plants", "--scene-param", "foo=1"], "no parameter 'foo'"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys, argv, fragment):
