@@ -148,14 +148,16 @@ def _light_name(light: Any) -> str:
     return str(getattr(light, "name", light))
 
 
-def analyze_scene(scene: "Scene", light: "EnvironmentLight | str", *, light_changes: str = "none",
-                  target: float = DEFAULT_TARGET, render_bounces: bool = True,
-                  fast: bool = False, progress: bool = False) -> SceneAnalysis:
+def analyze_scene(scene: "Scene | str", light: "EnvironmentLight | str", *,
+                  light_changes: str = "none", target: float = DEFAULT_TARGET,
+                  render_bounces: bool = True, fast: bool = False, progress: bool = False,
+                  ) -> SceneAnalysis:
     """Measure what ``scene`` under ``light`` requires and decide what to model.
 
     Parameters
     ----------
-    scene : Scene
+    scene : Scene or str
+        A scene or its registry name (built in the diffuse variant with default parameters).
     light : EnvironmentLight or str
         A light or its registry name / HDR path.
     light_changes : {"none", "rotate", "family"}
@@ -183,6 +185,10 @@ def analyze_scene(scene: "Scene", light: "EnvironmentLight | str", *, light_chan
     if not (isinstance(target, (int, float)) and 0.0 < float(target) < 1.0):
         raise InvalidInputError(f"target lighting error {target!r}; accepted: a number in (0, 1)")
     target = float(target)
+    if isinstance(scene, str):
+        from ..scene import get_scene
+
+        scene = get_scene(scene)
     light = get_light(light) if isinstance(light, str) else light
     timings: dict[str, float] = {}
     m: dict[str, Any] = {}
@@ -235,9 +241,9 @@ def analyze_scene(scene: "Scene", light: "EnvironmentLight | str", *, light_chan
         m["interreflection"] = timed("interreflection", measures.interreflection, scene, light,
                                      **size)
         indirect = m["interreflection"]["indirect_fraction"]
-        needs_bounces = bool(indirect == indirect and indirect > BOUNCE_THRESHOLD)
+        needs_bounces = indirect is not None and indirect > BOUNCE_THRESHOLD
     else:
-        m["interreflection"] = {"indirect_fraction": None, "why": "not measured"}
+        m["interreflection"] = {"indirect_fraction": None, "why": "skipped on request"}
         needs_bounces = False
 
     ruled_out, restricted = light_variation(light_changes)
@@ -306,7 +312,8 @@ def _decisions(a: SceneAnalysis) -> list[dict[str, str]]:
                  else "vertex storage suffices"})
     r = m["interreflection"]
     if r.get("indirect_fraction") is None:
-        rows.append({"measurement": "one-bounce / direct energy", "value": "not measured",
+        rows.append({"measurement": "one-bounce / direct energy",
+                     "value": f"not measured ({r.get('why', '')})",
                      "decision": "bounces not assessed"})
     else:
         rows.append({"measurement": "one-bounce / direct energy",

@@ -332,13 +332,14 @@ def interreflection(scene: "Scene", light: "EnvironmentLight", *, width: int = 1
 
     Renders one trajectory view with :func:`prtbench.reference.render_reference` at bounces 0
     and 1 and compares total linear luminance. The background is 0 in both (``hide_emitters``),
-    so the ratio of sums equals the ratio of means over covered pixels.
+    so the ratio of sums equals the ratio of means over covered pixels. A scene without views
+    gives ``indirect_fraction`` None and a ``why``.
     """
     from ..reference import render_reference
 
-    view = scene.trajectory.views[view_index] if len(scene.trajectory) else None
-    if view is None:
-        return {"indirect_fraction": float("nan"), "why": "scene has no views"}
+    if len(scene.trajectory) == 0:
+        return {"indirect_fraction": None, "why": "scene has no views"}
+    view = scene.trajectory.views[view_index]
     refs = [render_reference(scene, light, view, width=width, height=height, spp=spp, bounces=b)
             for b in (0, 1)]
     lum = [np.asarray(r.image, dtype=np.float64) @ LUMINANCE_WEIGHTS for r in refs]

@@ -98,6 +98,10 @@ def test_glossy_bands_of_the_analysis_grow_with_the_exponent(sun_light):
     # A convex object alone: nothing occludes it, and nothing to interpolate across shadows.
     assert not results[None].needs_shadows
     assert results[None].measurements["visibility"]["max"] == 0.0
+    # A scene without views: interreflection is reported as not measured, never guessed.
+    bare = analyze.analyze_scene(_sphere_scene(), sun_light, fast=True)
+    assert bare.measurements["interreflection"]["indirect_fraction"] is None
+    assert not bare.needs_bounces and "not measured" in analyze.format_analysis(bare)
 
 
 def test_convex_sphere_is_unoccluded_and_sphere_over_plane_is_not():
