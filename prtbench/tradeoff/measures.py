@@ -113,7 +113,8 @@ def light_frequency(light: "EnvironmentLight", *, max_bands: int = MAX_LIGHT_BAN
 
     Returns
     -------
-    dict with ``radiance_energy_fraction``, ``radiance_error``, ``irradiance_error`` (lists of
+    dict with ``radiance_energy_fraction``, ``radiance_error``, ``irradiance_energy_fraction``
+    (of the ``max_bands``-band irradiance, SH domain), ``irradiance_error`` (lists of
     ``max_bands`` floats, index n − 1) and ``radiance_bands``, ``irradiance_bands`` (bands for
     each of ``REPORTED_TARGETS``).
     """
@@ -123,12 +124,17 @@ def light_frequency(light: "EnvironmentLight", *, max_bands: int = MAX_LIGHT_BAN
     total = float(np.sum(light.luminance() ** 2 * light.texel_solid_angles()))
     fraction = np.minimum(np.cumsum(per_band) / max(total, 1e-300), 1.0)
     radiance_error = np.sqrt(np.maximum(1.0 - fraction, 0.0))
+    # Irradiance energy per band: the clamped cosine scales band l by √(4π/(2l+1)) ĉ_l.
+    cosine = sh.clamped_cosine_zonal(max_bands)
+    irr_band = per_band * (4.0 * np.pi / (2 * np.arange(max_bands) + 1)) * cosine**2
+    irradiance_fraction = np.cumsum(irr_band) / max(float(irr_band.sum()), 1e-300)
     normals = fibonacci_sphere(n_normals)
     irradiance_error = _filtered_errors(light, sh.clamped_cosine_zonal(max_bands),
                                         lambda c: np.maximum(c, 0.0), normals)
     return {
         "radiance_energy_fraction": fraction.tolist(),
         "radiance_error": radiance_error.tolist(),
+        "irradiance_energy_fraction": irradiance_fraction.tolist(),
         "irradiance_error": irradiance_error.tolist(),
         "radiance_bands": bands_table(radiance_error),
         "irradiance_bands": bands_table(irradiance_error),
