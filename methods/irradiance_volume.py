@@ -189,6 +189,9 @@ class IrradianceVolume(Method):
     precompute_version = "1"
     summary = "Greger 1998 irradiance volume: N³ SH radiance probes, trilinear lookup per fragment"
     paper = "Greger, Shirley, Hubbard and Greenberg 1998, The Irradiance Volume (IEEE CG&A)"
+    light_dependence = "fixed-light"
+    light_dependence_why = ("computes the probes' radiance R = Γ·V·L on the CPU once per light "
+                            "(N³ triple products)")
     profile_overrides = {
         "smoke": {"rays_per_probe": 64},
         "quick": {"rays_per_probe": 256},

@@ -249,6 +249,8 @@ class LearntSdf(Method):
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
     paper = "Sirikonda 2023 (PhD thesis), §4.2.2 learnt transfer on SDFs"
+    light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "
+                                      "the TPFL matrix once per light")}
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "sdf-rabbit", "variant": "glossy", "light": "sky"}
 

@@ -214,6 +214,8 @@ class VertexTPFL(_TransferVectorMethod):
     summary = "Glossy vertex PRT: transfer vectors × per-light TPFL matrix, per vertex"
     paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
              "textures), §3 fixed-light triple product (TPFL), at vertices")
+    light_dependence = "fixed-light"
+    light_dependence_why = "folds the light into the TPFL matrix M_ik = Σ_j Γ_ijk L_j once per light"
     _mode = MODE_TPFL
 
 

@@ -123,6 +123,9 @@ class DataDrivenPRT(Method):
     summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
                "lightmap basis driven by a fake G-buffer")
     paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"
+    light_dependence = "family"
+    light_dependence_why = ("indirect light comes from a basis learnt from one family of lights "
+                            "(light_family; default: the environment map rotated about +Y)")
     profile_overrides = {
         "smoke": {"configurations": 8, "measurement_points": 64, "lightmap_resolution": 128,
                   "paths_per_texel": 8, "env_samples": 2, "env_lights": 8, "basis": 4,

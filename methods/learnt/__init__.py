@@ -36,6 +36,8 @@ class LearntTransfer(Method):
     precompute_version = "1"
     summary = "thesis ch. 4 learnt transfer: MLP (p, n) -> SH transfer, GLSL or torch, TPFL/TP"
     paper = "Sirikonda 2023 (PhD thesis), ch. 4 learnt transfer"
+    light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "
+                                      "the TPFL matrix once per light")}
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "plants", "variant": "glossy", "light": "sky"}
 

@@ -85,6 +85,8 @@ class TextureMethod(Method):
     Config = TextureConfig
     precompute_version = "1"
     product: ClassVar[str] = "tpfl"
+    light_baking_knobs = {"bounces": ("fixed-light", 0, "bounces > 0 bakes bounce_light into "
+                                      "the interreflection textures")}
     regression_case = {"variant": "glossy"}
     profile_overrides = {
         # Small atlases need thin padding to pack ~20k-triangle scenes (plants, room) at 128².
@@ -245,3 +247,5 @@ class TextureTPFL(TextureMethod):
     summary = "PRTT transfer textures, per-fragment fixed-light triple product matrix (TPFL)"
     paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
              "textures), Algorithms 1 and 2, TPFL shading")
+    light_dependence = "fixed-light"
+    light_dependence_why = "folds the light into the TPFL matrix M_ik = Σ_j Γ_ijk L_j once per light"
