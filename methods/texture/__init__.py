@@ -83,6 +83,8 @@ class TextureMethod(Method):
 
     Config = TextureConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "texture_resolution")
     product: ClassVar[str] = "tpfl"
     regression_case = {"variant": "glossy"}
     profile_overrides = {
