@@ -288,7 +288,44 @@ def _next(space_candidates: Sequence[Candidate], done: Mapping[Candidate, Evalua
     if start in undecided:
         return start
     undecided.sort(key=lambda c: (sum(c.ranks), c.ranks))
-    return undecided[(len(undecided) - 1) // 2]
+    return undecided[len(undecided) // 2]  # the upper middle: an unreachable top ends it at once
+
+
+class _Region:
+    """The candidates one method's search may visit: all of them, or (refining a screening
+    result) those within ``radius`` ladder steps of ``start``, widened while the best found
+    sits on the region's lower edge or nothing in it is feasible."""
+
+    def __init__(self, candidates: Sequence[Candidate], start: Candidate | None):
+        self.all, self.start = list(candidates), start
+        self.radius = 1 if start is not None and start in self.all else None
+
+    def _distance(self, c: Candidate) -> int:
+        steps = [abs(a - b) for a, b in zip(c.ranks, self.start.ranks)]
+        return max(steps, default=0) + (c.unordered != self.start.unordered)
+
+    def candidates(self) -> list[Candidate]:
+        if self.radius is None:
+            return self.all
+        return [c for c in self.all if self._distance(c) <= self.radius]
+
+    def widen(self, done: Mapping[Candidate, Evaluation]) -> bool:
+        """Widen by one step if the region may hide a cheaper feasible candidate: nothing in
+        it is feasible, or a candidate on its lower edge meets the accuracy bounds (one below
+        it might too, for less)."""
+        if self.radius is None or len(self.candidates()) == len(self.all):
+            return False
+        if not any(e.feasible for e in done.values()):
+            self.radius += 1
+            return True
+        for c, e in done.items():
+            on_edge = any(r == s - self.radius and r > 0 for r, s in zip(c.ranks, self.start.ranks))
+            accurate = e.row is not None and not e.error and not any(
+                k.grows_with_model is True for k in e.failed)
+            if on_edge and accurate and self._distance(c) <= self.radius:
+                self.radius += 1
+                return True
+        return False
 
 
 def search(space: SearchSpace, methods: Sequence[str], *, profile: str, run_batch, judge: _Judge,
@@ -296,15 +333,22 @@ def search(space: SearchSpace, methods: Sequence[str], *, profile: str, run_batc
     """Search the candidates of ``methods`` at one profile; returns every evaluation made.
 
     Each round evaluates one candidate per still-undecided method, as one batch (so a
-    parallel ``evaluate`` runs methods side by side).
+    parallel ``evaluate`` runs methods side by side). A method with a start (its screening
+    optimum) is searched in a region around it (:class:`_Region`).
     """
     starts = dict(starts or {})
     done: dict[str, dict[Candidate, Evaluation]] = {m: {} for m in methods}
+    regions = {m: _Region(space.space_of(m).candidates, starts.get(m)) for m in methods}
     history: list[Evaluation] = []
     while True:
         incumbent = min((e.cost for e in history if e.feasible), default=math.inf)
-        batch = [c for m in methods
-                 if (c := _next(space.space_of(m).candidates, done[m], starts.get(m), incumbent))]
+        batch = []
+        for m in methods:
+            while (c := _next(regions[m].candidates(), done[m], starts.get(m), incumbent)) is None:
+                if not regions[m].widen(done[m]):
+                    break
+            if c is not None:
+                batch.append(c)
         if not batch:
             return history
         for candidate, result in zip(batch, run_batch(batch, profile)):
@@ -431,6 +475,7 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     """
     from .. import outputs
     from ..lights import get_light
+    from ..method import METHODS
     from ..profiles import get_profile
     from ..reproduction import Cell
     from ..results import default_path
@@ -448,6 +493,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     if band_margin < 0:
         raise InvalidInputError(f"--band-margin {band_margin}; accepted: 0 or more")
     SCENES.check(scene)
+    for name in methods or ():
+        METHODS.check(name)
     scene_obj = get_scene(scene, variant=variant)
     light_obj = get_light(light or scene_obj.default_light)
     cost_fn = cost_fn or _default_cost_fn()
@@ -509,10 +556,11 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
                                         for e in final[:5]))
 
     def runner_up_of(choice: Evaluation) -> Evaluation | None:
-        others = [e for e in ranked if e.candidate != choice.candidate and e.row is not None
-                  and (e.feasible or not choice.feasible)]
-        other_methods = [e for e in others if e.candidate.method != choice.candidate.method]
-        return (other_methods or others or [None])[0]
+        # The next feasible one, of another method where possible; else the next closest.
+        others = [e for e in ranked if e.candidate != choice.candidate and e.row is not None]
+        feasible = [e for e in others if e.feasible]
+        other_methods = [e for e in feasible if e.candidate.method != choice.candidate.method]
+        return (other_methods or feasible or others or [None])[0]
 
     # Verify: the answer's numbers are those of a real, stored run in the requested profile.
     verified = None
