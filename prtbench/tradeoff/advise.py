@@ -3,17 +3,14 @@
 1. **Prune** (:mod:`.search_space`): from the scene analysis, drop the methods and knob
    ranges that cannot model what the scene requires or model more than it needs; every
    pruned method is reported with its reason.
-2. **Search adaptively**, never the whole grid. Within a method, candidates are ordered by
-   their main knobs (more bands, texels, probes: more accurate *and* more expensive), so one
-   measurement decides others: a candidate that misses an accuracy bound implies every
-   candidate below it misses it too, one that breaks a cost ceiling implies every candidate
-   above it does, and one that meets everything makes every candidate above it pointless
-   (it costs more). Each step evaluates, per method, the undecided candidate in the middle of
-   what is left (a binary search along one knob), so the cheapest feasible candidate of each
-   method is found in O(log n) runs. Over fidelity this is **successive halving**: when the
-   requested profile is larger than ``smoke``, all methods are first searched at ``smoke``,
-   the better ``keep_fraction`` of them (by target shortfall, then cost) go on to the
-   requested profile, where each search starts from its ``smoke`` optimum.
+2. **Search adaptively** (:mod:`.search`), never the whole grid: a monotone lattice search
+   per method (a measurement that misses an accuracy bound rules out everything below it,
+   one that meets all rules out everything above it), about O(log n) runs per knob. Over
+   fidelity this is **successive halving**: when the requested profile is larger than
+   ``smoke`` and more than two methods remain, all are first searched at ``smoke``, the
+   better ``keep_fraction`` of them (at least two; by target shortfall, then cost) go on to
+   the requested profile, where each search starts from its ``smoke`` optimum and stays
+   near it unless a cheaper feasible candidate may lie further out.
 3. **Verify**: the winner is run again in the requested profile with its rows stored in the
    results store, and the answer reports that run's numbers; the advisor never answers from
    a model or a screening run alone. If the verified run misses, the runner-up is verified.
@@ -22,76 +19,27 @@ A target nothing reaches is not an error: :class:`Advice` holds the closest conf
 (least relative shortfall) and ``hint`` says what would be needed, from the knobs that sat at
 the limit of their range and the analysis; the CLI exits 1.
 
-``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones); the
-defaults below reach the sibling modules ``analyze``, ``sweep`` and ``cost`` (marked WIRING).
+``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones). The
+defaults reach the sibling modules ``analyze`` and ``cost`` when present, and evaluate cells
+serially in this process; the lines to change for ``sweep.run_cells`` are marked WIRING.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..errors import InvalidInputError, PrtbenchError, UnknownNameError
-from .expressions import COSTS, Constraint, parse_constraints, row_value
+from .expressions import COSTS, Constraint, parse_constraints
+from .search import (CellResult, Evaluation, Judge, as_dict, best_per_method, brief, fmt,
+                     normalise, search)
 from .search_space import Candidate, SearchSpace, analysis_json, build_space
 
 #: Row field of each cost kind the fallback ``cost_fn`` reads.
 _ROW_COSTS = {"frame_ms": "frame_ms", "memory": "memory_bytes", "precompute": "precompute_s"}
-
-
-@dataclass
-class CellResult:
-    """What one evaluated cell returned: its result rows (one per view) or an error."""
-
-    rows: list[dict[str, Any]]
-    error: str = ""
-
-
-@dataclass
-class Evaluation:
-    """One candidate measured at one profile, judged against the target and budget.
-
-    Attributes
-    ----------
-    candidate : Candidate
-    profile : str
-    row : dict or None
-        The cell's rows aggregated (metrics and frame time averaged over views).
-    error : str
-        Why the cell has no usable row ('' when it has one).
-    cost : float
-        The ``cost_kind`` value (inf when unmeasured).
-    failed : tuple of Constraint
-        The constraints it misses.
-    shortfall : float
-        Sum of the missed constraints' relative shortfalls (inf if a value is missing).
-    values : dict of str to float or None
-        The measured value of each constrained quantity (metric key or cost kind).
-    """
-
-    candidate: Candidate
-    profile: str
-    row: dict[str, Any] | None
-    error: str
-    cost: float
-    failed: tuple[Constraint, ...]
-    shortfall: float
-    values: dict[str, float | None] = field(default_factory=dict)
-
-    @property
-    def feasible(self) -> bool:
-        return self.row is not None and not self.failed
-
-    def key(self) -> tuple:
-        """Sort key: feasible by cost, then the rest by shortfall, then cost."""
-        return (0, self.cost, 0.0) if self.feasible else (1, self.shortfall, self.cost)
 
 
 @dataclass
@@ -159,10 +107,6 @@ def _default_cost_fn() -> Callable[[Mapping, str], float]:
     return cost_value
 
 
-def _as_dict(row: Any) -> dict[str, Any]:
-    return dataclasses.asdict(row) if dataclasses.is_dataclass(row) else dict(row)
-
-
 def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None = None,
                     store: bool = False) -> list[CellResult]:
     """Run cells one after another in this process through the ordinary runner.
@@ -193,7 +137,7 @@ def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None 
                 out_dir=None, results_path=results_path, store_results=store,
                 write_images=False))
             summary = execute(prepared, progress=False, echo=False)
-            out.append(CellResult([_as_dict(r) for r in summary_rows(summary, prepared.scene)]))
+            out.append(CellResult([as_dict(r) for r in summary_rows(summary, prepared.scene)]))
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # one failing cell must not abort the search
@@ -202,192 +146,12 @@ def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None 
     return out
 
 
-def _normalise(result: Any) -> CellResult:
-    """A CellResult from what an ``evaluate`` returned for one cell: a CellResult, a
-    sweep CellOutcome (``rows``, ``status``, ``error``) or a plain list of rows."""
-    if isinstance(result, CellResult):
-        return result
-    if hasattr(result, "rows"):
-        rows = [_as_dict(r) for r in (result.rows or [])]
-        status = getattr(result, "status", "done")
-        error = "" if rows and status != "failed" else (getattr(result, "error", "") or status)
-        return CellResult(rows if not error else [], error)
-    return CellResult([_as_dict(r) for r in (result or [])], "" if result else "no rows")
-
-
-def aggregate(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """One row for a cell: metrics, frame time and pixel counts averaged over its views,
-    memory and precompute their maximum, anything else from the first view."""
-    first = dict(rows[0])
-    metrics = {}
-    for key in first.get("metrics") or {}:
-        values = [float(v) for r in rows if (v := (r.get("metrics") or {}).get(key)) is not None]
-        metrics[key] = float(np.mean(values)) if values else None
-    first["metrics"] = metrics
-    for key in ("frame_ms", "frame_ms_p95", "covered_pixels"):
-        values = [float(r[key]) for r in rows if r.get(key) is not None]
-        first[key] = float(np.mean(values)) if values else None
-    for key in ("memory_bytes", "precompute_s"):
-        values = [float(r[key]) for r in rows if r.get(key) is not None]
-        first[key] = max(values) if values else None
-    bad = [r for r in rows if r.get("status", "ok") != "ok"]
-    if bad:
-        first["status"], first["status_reason"] = bad[0].get("status"), bad[0].get("status_reason", "")
-    return first
-
-
-# --- the search -------------------------------------------------------------------------------
-
-class _Judge:
-    """Turns a cell's result into an :class:`Evaluation` against target and budget."""
-
-    def __init__(self, constraints: Sequence[Constraint], cost_kind: str, cost_fn):
-        self.constraints, self.cost_kind, self.cost_fn = list(constraints), cost_kind, cost_fn
-
-    def __call__(self, candidate: Candidate, profile: str, result: CellResult) -> Evaluation:
-        if not result.rows:
-            return Evaluation(candidate, profile, None, result.error or "no rows", math.inf,
-                              tuple(self.constraints), math.inf)
-        row = aggregate(result.rows)
-        cost = row_value(row, Constraint(self.cost_kind, "<=", 0, "", "cost"), self.cost_fn)
-        cost = math.inf if cost is None or not math.isfinite(cost) else cost
-        values = {c: row_value(row, c, self.cost_fn) for c in self.constraints}
-        failed = tuple(c for c in self.constraints if not c.holds(values[c]))
-        shortfall = sum(c.shortfall(values[c]) for c in failed)
-        named = {c.name: v for c, v in values.items()}
-        if row.get("status", "ok") != "ok":  # degenerate: its numbers are not measurements
-            return Evaluation(candidate, profile, row, f"{row['status']}: "
-                              f"{row.get('status_reason', '')}", cost,
-                              failed or tuple(self.constraints), math.inf, named)
-        return Evaluation(candidate, profile, row, "", cost, failed, shortfall, named)
-
-
-def _decided(c: Candidate, done: Mapping[Candidate, Evaluation], incumbent: float) -> bool:
-    """Whether the measured candidates already decide ``c`` (see the module docstring).
-
-    ``incumbent`` is the cost of the cheapest feasible candidate found so far, any method:
-    a candidate above one that already costs as much cannot beat it.
-    """
-    for d, e in done.items():
-        if e.row is None or e.error:  # a failed or degenerate cell implies nothing
-            continue
-        if c.below(d) and any(k.grows_with_model is True for k in e.failed):
-            return True  # models less than one that already misses an accuracy bound
-        if d.below(c) and (e.feasible or e.cost >= incumbent
-                           or any(k.grows_with_model is False for k in e.failed)):
-            return True  # models more than one that meets all, costs too much, or breaks a cost
-    return False
-
-
-def _next(space_candidates: Sequence[Candidate], done: Mapping[Candidate, Evaluation],
-          start: Candidate | None, incumbent: float = math.inf) -> Candidate | None:
-    """The next candidate of one method: ``start`` first, then the middle of the undecided."""
-    undecided = [c for c in space_candidates if c not in done and not _decided(c, done, incumbent)]
-    if not undecided:
-        return None
-    if start in undecided:
-        return start
-    undecided.sort(key=lambda c: (sum(c.ranks), c.ranks))
-    return undecided[len(undecided) // 2]  # the upper middle: an unreachable top ends it at once
-
-
-class _Region:
-    """The candidates one method's search may visit: all of them, or (refining a screening
-    result) those within ``radius`` ladder steps of ``start``, widened while the best found
-    sits on the region's lower edge or nothing in it is feasible."""
-
-    def __init__(self, candidates: Sequence[Candidate], start: Candidate | None):
-        self.all, self.start = list(candidates), start
-        self.radius = 1 if start is not None and start in self.all else None
-
-    def _distance(self, c: Candidate) -> int:
-        steps = [abs(a - b) for a, b in zip(c.ranks, self.start.ranks)]
-        return max(steps, default=0) + (c.unordered != self.start.unordered)
-
-    def candidates(self) -> list[Candidate]:
-        if self.radius is None:
-            return self.all
-        return [c for c in self.all if self._distance(c) <= self.radius]
-
-    def widen(self, done: Mapping[Candidate, Evaluation]) -> bool:
-        """Widen by one step if the region may hide a cheaper feasible candidate: nothing in
-        it is feasible, or a candidate on its lower edge meets the accuracy bounds (one below
-        it might too, for less)."""
-        if self.radius is None or len(self.candidates()) == len(self.all):
-            return False
-        if not any(e.feasible for e in done.values()):
-            self.radius += 1
-            return True
-        for c, e in done.items():
-            on_edge = any(r == s - self.radius and r > 0 for r, s in zip(c.ranks, self.start.ranks))
-            accurate = e.row is not None and not e.error and not any(
-                k.grows_with_model is True for k in e.failed)
-            if on_edge and accurate and self._distance(c) <= self.radius:
-                self.radius += 1
-                return True
-        return False
-
-
-def search(space: SearchSpace, methods: Sequence[str], *, profile: str, run_batch, judge: _Judge,
-           starts: Mapping[str, Candidate] | None = None, echo: bool = False) -> list[Evaluation]:
-    """Search the candidates of ``methods`` at one profile; returns every evaluation made.
-
-    Each round evaluates one candidate per still-undecided method, as one batch (so a
-    parallel ``evaluate`` runs methods side by side). A method with a start (its screening
-    optimum) is searched in a region around it (:class:`_Region`).
-    """
-    starts = dict(starts or {})
-    done: dict[str, dict[Candidate, Evaluation]] = {m: {} for m in methods}
-    regions = {m: _Region(space.space_of(m).candidates, starts.get(m)) for m in methods}
-    history: list[Evaluation] = []
-    while True:
-        incumbent = min((e.cost for e in history if e.feasible), default=math.inf)
-        batch = []
-        for m in methods:
-            while (c := _next(regions[m].candidates(), done[m], starts.get(m), incumbent)) is None:
-                if not regions[m].widen(done[m]):
-                    break
-            if c is not None:
-                batch.append(c)
-        if not batch:
-            return history
-        for candidate, result in zip(batch, run_batch(batch, profile)):
-            e = judge(candidate, profile, result)
-            done[candidate.method][candidate] = e
-            history.append(e)
-            if echo:
-                print(f"[advise] {profile}: {candidate.method} {candidate.label()}: "
-                      f"{_brief(e, judge)}", file=sys.stderr, flush=True)
-
-
-def _brief(e: Evaluation, judge: _Judge) -> str:
-    if e.row is None:
-        return f"failed ({e.error})"
-    parts = [f"{c.name}={_fmt(e.values.get(c.name))}" for c in judge.constraints]
-    return (", ".join(parts) + f", {judge.cost_kind}={_fmt(e.cost)} "
-            + ("meets all" if e.feasible else f"misses {', '.join(c.text for c in e.failed)}"))
-
-
-def _fmt(x: Any) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
-    return f"{x:.4g}" if isinstance(x, float) else str(x)
-
-
-def _best_per_method(history: Sequence[Evaluation]) -> dict[str, Evaluation]:
-    best: dict[str, Evaluation] = {}
-    for e in history:
-        if e.candidate.method not in best or e.key() < best[e.candidate.method].key():
-            best[e.candidate.method] = e
-    return best
-
-
-def _hint(choice: Evaluation, space: SearchSpace, judge: _Judge,
+def _hint(choice: Evaluation, space: SearchSpace, judge: Judge,
           history: Sequence[Evaluation]) -> str:
     """What would be needed to reach the target, from the knobs at their limit and the analysis."""
     if choice.row is None:
         return f"no configuration could be measured (e.g. {choice.error})"
-    missed = [f"{c.name} {_fmt(choice.values.get(c.name))} (wanted {c.describe()})"
+    missed = [f"{c.name} {fmt(choice.values.get(c.name))} (wanted {c.describe()})"
               for c in choice.failed]
     parts = [f"closest: {choice.candidate.method} {choice.candidate.label()} misses "
              + "; ".join(missed)]
@@ -395,7 +159,7 @@ def _hint(choice: Evaluation, space: SearchSpace, judge: _Judge,
                 and e.profile == choice.profile and all(c.kind == "cost" for c in e.failed)]
     if accurate:  # the target is reachable, the budget is what is missed
         e = min(accurate, key=lambda e: (e.shortfall, e.cost))
-        over = "; ".join(f"{c.name} {_fmt(e.values.get(c.name))} > {c.describe()}" for c in e.failed)
+        over = "; ".join(f"{c.name} {fmt(e.values.get(c.name))} > {c.describe()}" for c in e.failed)
         parts.append(f"the target is met by {e.candidate.method} {e.candidate.label()}, but it "
                      f"breaks the budget ({over}): raise the budget or lower the target")
         return "; ".join(parts)
@@ -505,6 +269,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     if verify is None:
         outputs.check_results_store("--results", results_path or default_path())
         outputs.check_cache()
+    # WIRING (sweep): evaluate = evaluate or (lambda cells, *, profile: run_cells(
+    #     cells, profile=profile, progress=False).cells) -- CellOutcomes are accepted as they are.
     evaluate = evaluate or (lambda cells, *, profile: serial_evaluate(cells, profile=profile))
     verify = verify or (lambda cells, *, profile: serial_evaluate(
         cells, profile=profile, results_path=results_path, store=True))
@@ -525,23 +291,23 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         results = list(evaluate([cell(c) for c in batch], profile=at))
         if len(results) != len(batch):
             raise PrtbenchError(f"evaluate returned {len(results)} results for {len(batch)} cells")
-        return [_normalise(r) for r in results]
+        return [normalise(r) for r in results]
 
-    judge = _Judge(constraints, cost, cost_fn)
+    judge = Judge(constraints, cost, cost_fn)
     names = [m.method for m in space.methods]
     history, notes, pruned = [], [], list(space.pruned)
     starts: dict[str, Candidate] = {}
     if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
         screen = search(space, names, profile="smoke", run_batch=run_batch, judge=judge, echo=echo)
         history += screen
-        best = _best_per_method(screen)
+        best = best_per_method(screen)
         ranked = sorted(best.values(), key=Evaluation.key)
         keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
         kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
         for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
             pruned.append({"method": e.candidate.method, "why": (
                 f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
-                + (_brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
+                + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
         names = [e.candidate.method for e in kept]
         starts = {e.candidate.method: e.candidate for e in kept}
         notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
@@ -566,12 +332,12 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     verified = None
     tried = [ranked[0]] + ([r] if (r := runner_up_of(ranked[0])) is not None and r.feasible else [])
     for pick in tried:
-        result = _normalise(list(verify([cell(pick.candidate)], profile=profile))[0])
+        result = normalise(list(verify([cell(pick.candidate)], profile=profile))[0])
         verified = judge(pick.candidate, profile, result)
         if verified.feasible or not pick.feasible:
             break
         notes.append(f"verification of {pick.candidate.method} {pick.candidate.label()} missed "
-                     f"({_brief(verified, judge)}); trying the runner-up")
+                     f"({brief(verified, judge)}); trying the runner-up")
     if verified.row is None:
         raise PrtbenchError(f"the verification run of {verified.candidate.method} "
                             f"{verified.candidate.label()} failed: {verified.error}")
@@ -602,7 +368,7 @@ def format_advice(advice: Advice, *, top: int = 8) -> str:
     for e in sorted(final, key=Evaluation.key)[:top]:
         values = [e.values.get(name) for name in judge_names]
         values += [] if advice.cost_kind in judge_names else [e.cost]
-        rows.append([e.candidate.method, e.candidate.label(), *map(_fmt, values),
+        rows.append([e.candidate.method, e.candidate.label(), *map(fmt, values),
                      "yes" if e.feasible else "no"])
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     lines.append(f"best candidates at the {advice.choice.profile} profile:")
@@ -612,15 +378,15 @@ def format_advice(advice: Advice, *, top: int = 8) -> str:
     mem = c["memory_bytes"]
     lines.append(f"{'choice' if advice.met else 'closest (target not reached)'} (verified, stored): "
                  f"{c['method']} {advice.choice.candidate.label()}: "
-                 + ", ".join(f"{k} {_fmt(c['metrics'].get(k))}" for k in judge_names
+                 + ", ".join(f"{k} {fmt(c['metrics'].get(k))}" for k in judge_names
                              if k in c["metrics"])
-                 + f"; frame {_fmt(c['frame_ms'])} ms, memory "
-                 f"{_fmt(mem / 2 ** 20 if mem is not None else None)} MiB, precompute "
-                 f"{_fmt(c['precompute_s'])} s, {advice.cost_kind} {_fmt(advice.choice.cost)}")
+                 + f"; frame {fmt(c['frame_ms'])} ms, memory "
+                 f"{fmt(mem / 2 ** 20 if mem is not None else None)} MiB, precompute "
+                 f"{fmt(c['precompute_s'])} s, {advice.cost_kind} {fmt(advice.choice.cost)}")
     if advice.runner_up is not None:
         lines.append(f"runner-up: {advice.runner_up.candidate.method} "
                      f"{advice.runner_up.candidate.label()} ({advice.cost_kind} "
-                     f"{_fmt(advice.runner_up.cost)})")
+                     f"{fmt(advice.runner_up.cost)})")
     if not advice.met:
         lines.append(f"needed: {advice.hint}")
     return "\n".join(lines)

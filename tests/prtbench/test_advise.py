@@ -382,3 +382,49 @@ def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, monkeypatch, capsys,
     assert code == 2 and fragment in err and err.startswith("prtbench: error: ")
     assert err.count("\n") == 1 and calls == []
     assert list(tmp_path.iterdir()) == []
+
+
+def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
+    from dataclasses import dataclass
+
+    from prtbench.config import knob
+    from prtbench.method import Method
+    from prtbench.tradeoff.search_space import method_space
+
+    @dataclass(frozen=True)
+    class ProbeConfig:
+        sh_bands: int = knob(3, "bands", low=1, high=6)
+        probes: int = knob(8, "probes per axis (wide range: x2 steps)", low=2, high=64)
+        taps: int = knob(3, "narrow range: +-1 steps", low=1, high=4)
+        mode: str = knob("a", "unordered choices", choices=("a", "b"))
+        visibility: bool = knob(True, "shadowed transfer")
+
+    class Probe(Method):
+        name, Config = "probe", ProbeConfig
+        main_knobs = ("probes", "taps", "mode")
+
+        @classmethod
+        def precompute(cls, scene, config, *, progress=True):
+            raise NotImplementedError
+
+        @classmethod
+        def renderer(cls, scene, artifact, config, *, width, height):
+            raise NotImplementedError
+
+    scene = get_scene("sphere-over-plane")
+    space = method_space(Probe, "probe", scene, analysis(required_bands=5, needs_shadows=False),
+                         profile="smoke")
+    assert space.ladders == {"probes": [4, 8, 16], "taps": [2, 3, 4], "mode": ["a", "b"],
+                             "sh_bands": [5, 6]}
+    assert space.fixed == {"visibility": False}  # needs_shadows false: unshadowed only
+    assert len(space.candidates) == 3 * 3 * 2 * 2
+    low = next(c for c in space.candidates if c.overrides["probes"] == 4
+               and c.overrides["taps"] == 2 and c.overrides["sh_bands"] == 5)
+    high = next(c for c in space.candidates if c.overrides["probes"] == 16
+                and c.overrides["taps"] == 4 and c.overrides["sh_bands"] == 6
+                and c.overrides["mode"] == low.overrides["mode"])
+    other_mode = next(c for c in space.candidates if c.overrides["mode"] != low.overrides["mode"])
+    assert low.below(high) and not high.below(low)
+    assert not low.below(other_mode) and not other_mode.below(low)  # choices do not compare
+    shadowed = method_space(Probe, "probe", scene, analysis(needs_shadows=True), profile="smoke")
+    assert "visibility" not in shadowed.fixed and "visibility" not in shadowed.ladders
