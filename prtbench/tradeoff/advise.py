@@ -165,14 +165,17 @@ def _hint(choice: Evaluation, space: SearchSpace, judge: Judge,
         return "; ".join(parts)
     method_space = space.space_of(choice.candidate.method)
     values = choice.candidate.overrides
+    # Past the SH band limit: spatial detail (texels) or an all-frequency basis.
+    instead = ("; use wavelets" if "texture_resolution" in values
+               else "; use texture methods or wavelets")
     for knob, why in method_space.shortfalls.items():
         parts.append(f"{why}: needs > {values.get(knob)} {knob.replace('sh_', '')}"
-                     + ("; use texture methods or wavelets" if knob == "sh_bands" else ""))
+                     + (instead if knob == "sh_bands" else ""))
     for knob in method_space.at_top(choice.candidate):
         high = method_space.highs.get(knob)
         if high is not None and values[knob] >= high:
             parts.append(f"needs {knob} > {values[knob]}, the top of its range"
-                         + ("; use texture methods or wavelets" if knob == "sh_bands" else ""))
+                         + (instead if knob == "sh_bands" else ""))
         else:
             parts.append(f"{knob} was searched up to {values[knob]}"
                          f"{f' of a range up to {high:g}' if high is not None else ''}"

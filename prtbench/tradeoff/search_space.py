@@ -17,7 +17,8 @@
   required count to ``band_margin`` above it, clipped to the knob's declared range; a method
   whose range stops below the requirement is kept at its top and the gap recorded (it feeds
   the "what would be needed" hint);
-* ``needs_textures`` false: ``texture_resolution`` keeps only the lower half of its ladder.
+* ``needs_textures``: ``texture_resolution`` is searched at half, once and twice the profile's
+  default; false drops the high resolution.
 
 Every other main knob (a method's ``main_knobs`` class attribute: knobs along which accuracy
 and cost both grow) is searched on a short ladder around the profile's default, derived from
@@ -204,11 +205,10 @@ def _analysis_ladder(knob: str, f, default, tp, analysis, *, band_margin: int,
     if knob == "visibility":
         return [False] if not analysis.needs_shadows else None
     if knob == "texture_resolution" and default:
-        ladder = _clip([default / 4, default / 2, default, default * 2], low, high, int)
-        # Vertices already resolve the shadows: texels beyond half the default buy nothing.
-        keep = [v for v in ladder if (v >= default / 2 if analysis.needs_textures
-                                      else v <= default / 2)]
-        return keep or ladder[:1]
+        # Vertices already resolve the shadows: no texels beyond the profile's default. (Not
+        # below half of it either: small atlases stop packing big scenes.)
+        ladder = _clip([default / 2, default, default * 2], low, high, int)
+        return [v for v in ladder if analysis.needs_textures or v <= default] or ladder[:1]
     return None
 
 

@@ -90,8 +90,8 @@ def test_a_diffuse_scene_prunes_glossy_only_and_misfit_methods():
     assert {"vertex", "irradiance-volume", "texture-tp", "texture-tpfl"} <= set(kept)
     assert kept["vertex"].ladders["sh_bands"] == [3, 4, 5]  # required .. required + margin
     assert kept["vertex"].fixed == {"bounces": 0}
-    # Vertices resolve the shadows: only the lower half of the texture ladder (quick: 256).
-    assert kept["texture-tp"].ladders["texture_resolution"] == [64, 128]
+    # Vertices resolve the shadows: no texture resolution above the profile's (quick: 256).
+    assert kept["texture-tp"].ladders["texture_resolution"] == [128, 256]
     assert kept["irradiance-volume"].ladders["resolution"] == [4, 8, 16]  # ×2 around 8
     assert space.size == sum(len(m.candidates) for m in space.methods) == 33
     # Every registered method is either searched or pruned with its reason.
