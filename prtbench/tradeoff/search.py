@@ -103,8 +103,8 @@ def aggregate(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     for key in ("frame_ms", "frame_ms_p95", "covered_pixels"):
         values = [float(r[key]) for r in rows if r.get(key) is not None]
         first[key] = float(np.mean(values)) if values else None
-    for key in ("memory_bytes", "precompute_s"):
-        values = [float(r[key]) for r in rows if r.get(key) is not None]
+    for key in ("memory_bytes", "precompute_s"):  # max keeps bytes an int
+        values = [r[key] for r in rows if r.get(key) is not None]
         first[key] = max(values) if values else None
     bad = [r for r in rows if r.get("status", "ok") != "ok"]
     if bad:
