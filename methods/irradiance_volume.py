@@ -187,6 +187,8 @@ class IrradianceVolume(Method):
 
     Config = IrradianceVolumeConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("resolution", "sh_bands")
     summary = "Greger 1998 irradiance volume: N³ SH radiance probes, trilinear lookup per fragment"
     paper = "Greger, Shirley, Hubbard and Greenberg 1998, The Irradiance Volume (IEEE CG&A)"
     light_dependence = "fixed-light"

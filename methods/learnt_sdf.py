@@ -246,6 +246,8 @@ class LearntSdf(Method):
     Config = LearntSdfConfig
     # The artifact holds a network fitted to SDF transfer, so it follows that code's version.
     precompute_version = f"1+sdf-transfer-{SDF_TRANSFER_VERSION}"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "hidden")
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
     paper = "Sirikonda 2023 (PhD thesis), §4.2.2 learnt transfer on SDFs"

@@ -39,6 +39,8 @@ class VertexPRT(Method):
 
     Config = VertexConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands",)
     summary = "Sloan 2002 diffuse transfer vectors at vertices, shaded per vertex"
     paper = ("Sloan, Kautz and Snyder 2002, Precomputed Radiance Transfer for Real-Time "
              "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "

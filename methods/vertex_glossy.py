@@ -173,6 +173,10 @@ class _GlossyVertexMethod(Method):
 
     profile_overrides = _PROFILES
     regression_case = {"variant": "glossy"}
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands",)
+    #: On a diffuse scene these render what ``vertex`` renders, at a higher cost.
+    glossy_only = True
     _mode: int
 
     @classmethod

@@ -120,6 +120,8 @@ class DataDrivenPRT(Method):
 
     Config = DataDrivenConfig
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("basis",)
     summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
                "lightmap basis driven by a fake G-buffer")
     paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"

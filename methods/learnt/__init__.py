@@ -34,6 +34,8 @@ class LearntTransfer(Method):
 
     Config = LearntConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "hidden")
     summary = "thesis ch. 4 learnt transfer: MLP (p, n) -> SH transfer, GLSL or torch, TPFL/TP"
     paper = "Sirikonda 2023 (PhD thesis), ch. 4 learnt transfer"
     light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "

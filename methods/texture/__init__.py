@@ -84,6 +84,8 @@ class TextureMethod(Method):
 
     Config = TextureConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "texture_resolution")
     product: ClassVar[str] = "tpfl"
     light_baking_knobs = {"bounces": ("fixed-light", 0, "bounces > 0 bakes bounce_light into "
                                       "the interreflection textures")}
