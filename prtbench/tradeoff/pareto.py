@@ -246,30 +246,40 @@ class ParetoResult:
     paths: list[Path]
 
 
-def ops_correlations(rows: Sequence, points: Sequence[Point]) -> dict:
-    """Spearman ρ of ``ops`` against measured ``frame_ms``, over rows and over configurations.
+def ops_correlations(rows: Sequence) -> dict[str, dict]:
+    """Spearman ρ of ``ops`` against measured ``frame_ms`` per renderer (device).
 
-    Rows measured alone (``workers == 1``) are used when there are any. Returns a dict with
-    ``rows`` and ``configs`` entries ``(rho, p, n)``, and the devices/renderers timed.
+    Over the ok rows given (one scene and light), and over configurations (the mean frame
+    time of each configuration's rows against its ops). Rows measured alone (``workers == 1``)
+    are used when there are any. Timings of different renderers are never mixed.
+
+    Returns
+    -------
+    dict
+        renderer -> ``{"rows": (rho, p, n), "configs": (rho, p, n), "devices": [...]}``.
     """
     ok = [r for r in rows if r.status == "ok"]
     alone = [r for r in ok if r.workers == 1] or ok
-    by_config: dict[tuple, list] = defaultdict(list)
+    by_renderer: dict[str, list] = defaultdict(list)
     for r in alone:
-        by_config[(r.method, json.dumps(r.config, sort_keys=True), r.scene_variant, r.width,
-                   r.height)].append(r)
-    means = []
-    for group in by_config.values():
-        ops = [cost_mod.cost_value(r, "ops") for r in group]
-        ms = [cost_mod.cost_value(r, "frame_ms") for r in group]
-        ops, ms = [v for v in ops if math.isfinite(v)], [v for v in ms if math.isfinite(v)]
-        if ops and ms:
-            means.append({"ops": ops[0] if len(set(ops)) == 1 else sum(ops) / len(ops),
-                          "frame_ms": sum(ms) / len(ms), "method": group[0].method})
-    return {"rows": cost_mod.ops_rank_correlation(alone),
-            "configs": _spearman([m["ops"] for m in means], [m["frame_ms"] for m in means]),
-            "renderers": sorted({r.renderer for r in alone if r.renderer}),
-            "devices": sorted({r.device for r in alone if r.device})}
+        by_renderer[r.renderer or "unknown renderer"].append(r)
+    out = {}
+    for renderer, timed in sorted(by_renderer.items()):
+        by_config: dict[tuple, list] = defaultdict(list)
+        for r in timed:
+            by_config[(r.method, json.dumps(r.config, sort_keys=True), r.scene_variant, r.width,
+                       r.height)].append(r)
+        ops_means, ms_means = [], []
+        for group in by_config.values():
+            ops = [v for v in (cost_mod.cost_value(r, "ops") for r in group) if math.isfinite(v)]
+            ms = [v for v in (cost_mod.cost_value(r, "frame_ms") for r in group) if math.isfinite(v)]
+            if ops and ms:
+                ops_means.append(sum(ops) / len(ops))
+                ms_means.append(sum(ms) / len(ms))
+        out[renderer] = {"rows": cost_mod.ops_rank_correlation(timed),
+                         "configs": _spearman(ops_means, ms_means),
+                         "devices": sorted({r.device for r in timed if r.device})}
+    return out
 
 
 def _spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int]:
@@ -335,7 +345,7 @@ def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
                                 f"finite {error} in '{path}'; `prtbench sweep --scene {scene} "
                                 f"--profile {profile} ...` fills it")
         mark_fronts(points, error=error)
-        correlation = ops_correlations(rows, points)
+        correlation = ops_correlations(rows)
         result = ParetoResult(scene=scene, light=name, error=error, cost=cost, profile=profile,
                               points=points, skipped=skipped, correlation=correlation, paths=[])
         result.paths = write_reports(result, reports_dir=Path(reports_dir), results_path=path)

@@ -92,17 +92,21 @@ def csv_text(result: ParetoResult) -> str:
     return out.getvalue()
 
 
-def _correlation_line(result: ParetoResult) -> str:
-    c = result.correlation
-    rho_r, p_r, n_r = c["rows"]
-    rho_c, p_c, n_c = c["configs"]
-    where = "; ".join(c["renderers"]) or "unknown renderer"
-    if not math.isfinite(rho_r) and not math.isfinite(rho_c):
-        return (f"ops model vs measured frame_ms ({where}): too few rows with both "
-                f"({n_r} rows, {n_c} configurations) for a rank correlation")
-    return (f"ops model vs measured frame_ms ({where}): Spearman ρ = {_fmt(rho_r, 3)} "
-            f"(p = {_fmt(p_r, 2)}) over {n_r} rows, ρ = {_fmt(rho_c, 3)} (p = {_fmt(p_c, 2)}) "
-            f"over {n_c} configurations")
+def _correlation_lines(result: ParetoResult) -> list[str]:
+    """One line per renderer: how well ``ops`` ranks the measured frame times."""
+    lines = []
+    for renderer, c in result.correlation.items():
+        rho_r, p_r, n_r = c["rows"]
+        rho_c, p_c, n_c = c["configs"]
+        where = f"{renderer}; {', '.join(c['devices']) or 'unknown device'}"
+        if not math.isfinite(rho_r) and not math.isfinite(rho_c):
+            lines.append(f"ops model vs measured frame_ms ({where}): too few rows with both "
+                         f"({n_r} rows, {n_c} configurations) for a rank correlation")
+            continue
+        lines.append(f"ops model vs measured frame_ms ({where}): Spearman ρ = {_fmt(rho_r, 3)} "
+                     f"(p = {_fmt(p_r, 2)}) over {n_r} rows of this scene and light, "
+                     f"ρ = {_fmt(rho_c, 3)} (p = {_fmt(p_c, 2)}) over {n_c} configurations")
+    return lines or ["ops model vs measured frame_ms: no timed rows"]
 
 
 def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str) -> str:
@@ -143,7 +147,8 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
                 f"·fetches + {cost_mod.OPS_WEIGHTS['bytes']:g}·bytes (prtbench/tradeoff/cost.py "
                 "and each method's op_counts)"),
     }[cost]
-    lines += [f"- Cost: {cost} ({unit}): {cost_text}.", f"- {_correlation_line(result)}.", "",
+    lines += [f"- Cost: {cost} ({unit}): {cost_text}.",
+              *[f"- {line}." for line in _correlation_lines(result)], "",
               f"![Pareto front]({figure_name}.png)", ""]
     for (variant, width, height), members in _panels(points).items():
         front = sorted((p for p in members if p.dominated is False), key=lambda p: p.cost)
@@ -248,6 +253,6 @@ def summary_text(result: ParetoResult) -> str:
     missing = sorted({p.method for p in result.points if p.dominated is None})
     if missing:
         lines.append(f"  cost '{result.cost}' unavailable for: {', '.join(missing)}")
-    lines.append("  " + _correlation_line(result))
+    lines += ["  " + line for line in _correlation_lines(result)]
     lines += [f"wrote {p}" for p in result.paths]
     return "\n".join(lines)

@@ -299,3 +299,16 @@ def test_cli_pareto_empty_selection_names_the_sweep(tmp_path, capsys):
                  str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert "no ok rows of scene 'room'" in err and "prtbench sweep" in err
+
+
+def test_ops_correlation_never_mixes_renderers():
+    from prtbench.tradeoff.pareto import ops_correlations
+
+    rows = [_row(knobs={"sh_bands": n}, frame_ms=float(n), renderer="llvmpipe") for n in (2, 3, 4, 5)]
+    rows += [_row(knobs={"sh_bands": n}, frame_ms=10.0 - n, renderer="gpu", device="H200")
+             for n in (2, 3, 4, 5)]
+    by_renderer = ops_correlations(rows)
+    assert sorted(by_renderer) == ["gpu", "llvmpipe"]
+    assert by_renderer["llvmpipe"]["rows"][0] == pytest.approx(1.0)
+    assert by_renderer["gpu"]["configs"][0] == pytest.approx(-1.0)
+    assert by_renderer["gpu"]["devices"] == ["H200"] and by_renderer["gpu"]["rows"][2] == 4
