@@ -45,6 +45,7 @@ import dataclasses
 import json
 import math
 from collections.abc import Iterable, Mapping
+from functools import lru_cache
 from typing import Any
 
 from ..errors import PrtbenchError, UnknownNameError
@@ -265,6 +266,7 @@ def shade_transferred_madds(bands: int) -> float:
     return zonal + mirror + sh_eval_madds(bands) + 3.0 * bands * bands + 3 * bands + 9
 
 
+@lru_cache(maxsize=16)
 def triple_product_entries(bands: int) -> int:
     """Non-zeros of Γ for ``bands`` (the length of the list ``triple_product`` loops over)."""
     from ..sh import triple_product_sparse

@@ -138,9 +138,11 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
         lines.append("- Noise ceiling: none is stored for FLIP (no reference-against-itself FLIP "
                      "is measured), so FLIP values are not clipped.")
     cost_text = {
-        "frame_ms": (f"median GPU frame time (ms) measured on {'; '.join(renderers) or 'unknown'}"
-                     f" ({'; '.join(devices) or 'unknown device'}): device-specific; only rows "
-                     "measured with one worker are averaged where a configuration has any"),
+        "frame_ms": (f"each row's median frame time, averaged over the views, measured on "
+                     f"{'; '.join(renderers) or 'unknown'} ({'; '.join(devices) or 'unknown device'})"
+                     ": device-specific (timer queries on a GPU, host clock around draw + finish "
+                     "on llvmpipe); only rows measured with one worker are averaged where a "
+                     "configuration has any"),
         "memory": "resident bytes the renderer keeps to draw a frame",
         "precompute": "precompute wall time (s) of the artifact",
         "ops": (f"device-independent operations per frame: madds + {cost_mod.OPS_WEIGHTS['fetches']:g}"
