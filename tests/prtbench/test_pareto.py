@@ -232,6 +232,7 @@ def _store(tmp_path):
 def test_reports_written_atomically_and_equal_to_the_store(tmp_path):
     store, rows = _store(tmp_path)
     reports = tmp_path / "reports"
+    store_files = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     results = pareto(scene="plants", light="sky", cost="frame_ms", results_path=store.path,
                      reports_dir=reports)
     assert [r.light for r in results] == ["sky"]
@@ -261,6 +262,8 @@ def test_reports_written_atomically_and_equal_to_the_store(tmp_path):
     pareto(scene="plants", light="sky", cost="frame_ms", results_path=store.path, reports_dir=reports)
     assert {n: (reports / n).read_bytes() for n in names} == before
     assert sorted(p.name for p in reports.iterdir()) == names  # no temporary files left
+    # Read-only on the store: nothing created or changed beside it.
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == store_files
 
 
 def test_cli_pareto_every_light_and_ops(tmp_path, capsys):
