@@ -99,6 +99,9 @@ class Point:
     git_shas: list[str] = field(default_factory=list)
     note: str = ""
     dominated: bool | None = None
+    #: Mean ``madds``, ``fetches``, ``bytes`` of the ops model over the rows (empty if unknown),
+    #: whatever the cost kind, so every report shows what the model counts.
+    ops_counts: dict = field(default_factory=dict)
 
     @property
     def panel(self) -> tuple[str, int, int]:
@@ -175,6 +178,12 @@ def collect_points(rows: Iterable, *, error: str, cost: str) -> tuple[list[Point
         costs = [c for c in (cost_mod.cost_value(r, cost) for r in timed) if math.isfinite(c)]
         if not costs:
             note = cost_mod.cost_unavailable_reason(timed[0], cost) or f"no {cost}"
+        ops_counts = {}
+        try:
+            counts = [cost_mod.ops_counts(r) for r in group]
+            ops_counts = {k: sum(c[k] for c in counts) / len(counts) for k in cost_mod.OPS_WEIGHTS}
+        except cost_mod.CostUnavailable:
+            pass
         points.append(Point(
             method=method, config=json.loads(config_json), scene=scene, variant=variant,
             light=light, profile=profile, width=width, height=height,
@@ -186,7 +195,8 @@ def collect_points(rows: Iterable, *, error: str, cost: str) -> tuple[list[Point
             timing_workers=sorted({r.workers for r in timed}),
             devices=sorted({r.device for r in timed if r.device}),
             renderers=sorted({r.renderer for r in timed if r.renderer}),
-            git_shas=sorted({r.git_sha for r in group if r.git_sha}), note=note))
+            git_shas=sorted({r.git_sha for r in group if r.git_sha}), note=note,
+            ops_counts=ops_counts))
     return points, skipped
 
 

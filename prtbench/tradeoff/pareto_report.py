@@ -23,7 +23,7 @@ _MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "h", "<", ">", "p")
 _CSV_COLUMNS = ("scene", "light", "variant", "width", "height", "profile", "method", "config",
                 "error_kind", "error", "error_unclipped", "clipped", "noise_ceiling_db",
                 "cost_kind", "cost", "on_front", "dominated", "views", "rows", "run_ids",
-                "timing_workers", "note")
+                "timing_workers", "ops_madds", "ops_fetches", "ops_bytes", "note")
 
 
 def report_stem(scene: str, light: str) -> str:
@@ -88,7 +88,9 @@ def csv_text(result: ParetoResult) -> str:
             "" if not math.isfinite(p.cost) else repr(p.cost),
             "" if p.dominated is None else int(not p.dominated),
             "" if p.dominated is None else int(p.dominated), p.views, p.rows,
-            ";".join(p.run_ids), ";".join(map(str, p.timing_workers)), p.note])
+            ";".join(p.run_ids), ";".join(map(str, p.timing_workers)),
+            *(repr(p.ops_counts[k]) if k in p.ops_counts else "" for k in ("madds", "fetches", "bytes")),
+            p.note])
     return out.getvalue()
 
 

@@ -315,3 +315,15 @@ def test_ops_correlation_never_mixes_renderers():
     assert by_renderer["llvmpipe"]["rows"][0] == pytest.approx(1.0)
     assert by_renderer["gpu"]["configs"][0] == pytest.approx(-1.0)
     assert by_renderer["gpu"]["devices"] == ["H200"] and by_renderer["gpu"]["rows"][2] == 4
+
+
+def test_csv_carries_the_ops_breakdown(tmp_path):
+    store, rows = _store(tmp_path)
+    pareto(scene="plants", light="sky", cost="memory", results_path=store.path,
+           reports_dir=tmp_path / "r")
+    with open(tmp_path / "r" / "pareto-plants-sky.csv") as fh:
+        line = next(l for l in csv.DictReader(fh) if l["method"] == "vertex-tpfl")
+    counts = cost.ops_counts(next(r for r in rows if r.method == "vertex-tpfl"))
+    assert float(line["ops_madds"]) == pytest.approx(counts["madds"])
+    assert float(line["ops_fetches"]) == pytest.approx(counts["fetches"])
+    assert float(line["ops_bytes"]) == pytest.approx(counts["bytes"])
