@@ -301,6 +301,14 @@ def _spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int
     return float(result.statistic), float(result.pvalue), len(x)
 
 
+def fill_hint(scene: str, profile: str) -> str:
+    """The command that fills the store for ``scene`` (a sweep file when one exists here)."""
+    grid = Path("sweeps") / f"{scene}-all.toml"
+    if grid.is_file():
+        return f"`prtbench sweep {grid} --profile {profile}` fills it"
+    return f"`prtbench sweep --scene {scene} --method METHOD,... --profile {profile}` fills it"
+
+
 def select_rows(store, *, scene: str, light: str | None, profile: str) -> dict[str, list]:
     """The store's rows of ``scene`` and ``profile`` by light (ok, against the path reference).
 
@@ -311,8 +319,7 @@ def select_rows(store, *, scene: str, light: str | None, profile: str) -> dict[s
     by_light: dict[str, list] = defaultdict(list)
     for r in rows:
         by_light[r.light].append(r)
-    fill = (f"`prtbench sweep --scene {scene} --profile {profile} ...` (or "
-            f"`prtbench sweep sweeps/{scene}-all.toml --profile {profile}`) fills it")
+    fill = fill_hint(scene, profile)
     if not by_light:
         raise PrtbenchError(f"no ok rows of scene '{scene}' in profile '{profile}' against the "
                             f"path reference in results store '{store.path}'; {fill}")
@@ -344,16 +351,14 @@ def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
     outputs.check_folder("--reports", Path(reports_dir))
     path = Path(results_path) if results_path is not None else default_path()
     if not path.is_file() and not path.is_dir():
-        raise PrtbenchError(f"no results store at '{path}'; `prtbench sweep --scene {scene} "
-                            f"--profile {profile} ...` fills it")
+        raise PrtbenchError(f"no results store at '{path}'; {fill_hint(scene, profile)}")
     store = ResultsStore(path, readonly=True)
     results = []
     for name, rows in select_rows(store, scene=scene, light=light, profile=profile).items():
         points, skipped = collect_points(rows, error=error, cost=cost)
         if not points:
             raise PrtbenchError(f"no configuration of scene '{scene}' under light '{name}' has a "
-                                f"finite {error} in '{path}'; `prtbench sweep --scene {scene} "
-                                f"--profile {profile} ...` fills it")
+                                f"finite {error} in '{path}'; {fill_hint(scene, profile)}")
         mark_fronts(points, error=error)
         correlation = ops_correlations(rows)
         result = ParetoResult(scene=scene, light=name, error=error, cost=cost, profile=profile,
