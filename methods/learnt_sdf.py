@@ -44,7 +44,7 @@ from prtbench.scene import Texture
 from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
 from methods import SHADER_DIR
-from methods.learnt.config import LearntConfig
+from methods.learnt.config import LearntConfig, check_training_memory
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
 MODEL_VERSION = 1
@@ -250,6 +250,8 @@ class LearntSdf(Method):
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
     paper = "Sirikonda 2023 (PhD thesis), §4.2.2 learnt transfer on SDFs"
+    light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "
+                                      "the TPFL matrix once per light")}
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "sdf-rabbit", "variant": "glossy", "light": "sky"}
 
@@ -272,6 +274,7 @@ class LearntSdf(Method):
         if config.hidden % 4:
             raise InvalidInputError(f"learnt-sdf hidden={config.hidden}; accepted: multiples of "
                                     "4 (the GLSL path packs weights into mat4 blocks)")
+        check_training_memory(cls.name, config)
         if config.device == "cuda":
             from methods.learnt.network import resolve_device
 
