@@ -9,7 +9,7 @@ ifneq (,$(wildcard $(LIBLLVM)))
 export DRJIT_LIBLLVM_PATH ?= $(LIBLLVM)
 endif
 
-.PHONY: setup test test-slow test-assets bench assets demo regress regress-update tables figures clean
+.PHONY: setup test test-slow test-assets bench assets demo regress regress-update tables figures pareto clean
 
 setup: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
@@ -59,6 +59,11 @@ figure-%: setup
 
 tables: $(addprefix table-,$(TABLES))
 figures: $(addprefix figure-,$(FIGURES))
+
+# Pareto fronts over (masked PSNR, frame ms) from the results store: reports/pareto-<scene>-sky.*
+pareto: setup
+	$(PRTBENCH) pareto --scene plants --light sky --profile $(PROFILE)
+	$(PRTBENCH) pareto --scene room --light sky --profile $(PROFILE)
 
 clean:
 	rm -rf out results .pytest_cache

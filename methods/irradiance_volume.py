@@ -235,6 +235,26 @@ class IrradianceVolume(Method):
                  height: int) -> "IrradianceVolumeRenderer":
         return IrradianceVolumeRenderer(scene, artifact, config, width=width, height=height)
 
+    @classmethod
+    def op_counts(cls, config: IrradianceVolumeConfig, *, scene_vertices: int,
+                  scene_triangles: int, covered_pixels: int, width: int, height: int,
+                  memory_bytes: int):
+        """irradiance_volume.frag per covered pixel: the cell and its 8 trilinear weights with a
+        validity fetch each, 8·n² RGB texel fetches weighted into n² coefficients, and the
+        clamped-cosine zonal evaluation at the normal (sh_zonal_eval_rgb). The grid resolution
+        N changes what is resident, not the per-pixel work: ``ops`` does not grow with N."""
+        from prtbench.tradeoff import cost
+
+        n2 = config.sh_bands**2
+        texel = 12 if config.precision == "float32" else 6
+        zonal_eval = cost.sh_eval_madds(config.sh_bands) + 3.0 * n2 + 6.0 * config.sh_bands
+        per_pixel = {"madds": 20.0 + 8 * 6 + 8 * 3.0 * n2 + zonal_eval + 3 + cost.TRANSCENDENTAL_MADDS,
+                     "fetches": 8.0 + 8.0 * n2, "bytes": 8.0 + 8.0 * n2 * texel}
+        return cost.add_counts(
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=9, vertex_bytes=36),
+            cost.scaled(per_pixel, covered_pixels))
+
 
 def radiance_texture_layout(radiance: np.ndarray, resolution: int, bands: int) -> np.ndarray:
     """Probe radiance (N³, n², 3) → 3D texture data (depth n·N, height N, width n·N, 3).

@@ -32,6 +32,7 @@ import json
 import statistics
 import time
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -304,6 +305,31 @@ class LearntSdf(Method):
         if config.renderer == "torch":
             return TorchSdfRenderer(scene, network, spec, config, width=width, height=height)
         return GlslSdfRenderer(scene, network, spec, config, width=width, height=height)
+
+    #: Mean sphere-tracing steps per primary ray assumed by ``op_counts`` (the stored rows do
+    #: not record the traced step count; capped by ``max_steps``).
+    ops_mean_steps: ClassVar[int] = 64
+    #: Multiply-adds of one evaluation of a scene's SDF (a few analytic primitives and their
+    #: smooth union); the rows do not store the primitive count either.
+    ops_sdf_madds: ClassVar[int] = 40
+
+    @classmethod
+    def op_counts(cls, config: LearntSdfConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """learnt_sdf.frag, one full-screen pass: every pixel sphere-traces its primary ray
+        (:attr:`ops_mean_steps` SDF evaluations of :attr:`ops_sdf_madds`, an estimate: the
+        step count is not stored); each covered pixel adds the tetrahedral normal (4 more
+        evaluations), the network, H by TPFL or TP and Phong shading (as ``learnt``)."""
+        from methods.learnt import network_counts, shade_counts
+        from prtbench.tradeoff import cost
+
+        steps = min(cls.ops_mean_steps, config.max_steps)
+        per_pixel = {"madds": 20.0 + steps * (cls.ops_sdf_madds + 6)}
+        per_hit = cost.add_counts(network_counts(config), shade_counts(config),
+                                  {"madds": 4.0 * cls.ops_sdf_madds + 12})
+        return cost.add_counts(cost.scaled(per_pixel, width * height),
+                               cost.scaled(per_hit, covered_pixels),
+                               {"bytes": float(memory_bytes) + 16.0 * covered_pixels})
 
 
 # --- renderers ---------------------------------------------------------------------------------

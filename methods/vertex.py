@@ -85,6 +85,22 @@ class VertexPRT(Method):
                  height: int) -> "VertexRenderer":
         return VertexRenderer(scene, artifact, config, width=width, height=height)
 
+    @classmethod
+    def op_counts(cls, config: VertexConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """vertex_prt.vert: per vertex n² SSBO loads (RGB when bounces are baked) and an RGB
+        madd each, then kd/π; vertex_prt.frag only interpolates the radiance (3 varyings)."""
+        from prtbench.tradeoff.cost import add_counts, raster_counts
+
+        coeffs = config.sh_bands**2
+        channels = 3 if config.bounces > 0 else 1
+        per_vertex = {"madds": 3.0 * coeffs + 3.0, "fetches": float(coeffs * channels),
+                      "bytes": 4.0 * coeffs * channels}
+        return add_counts(
+            raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                          pixels=covered_pixels, varyings=3, vertex_bytes=24),
+            {key: value * scene_vertices for key, value in per_vertex.items()})
+
 
 class VertexRenderer(RasterRenderer):
     """Per-vertex SH dot product; transfer vectors live in a shader storage buffer."""

@@ -189,6 +189,31 @@ class _GlossyVertexMethod(Method):
         return GlossyVertexRenderer(scene, artifact, mode=cls._mode, sh_bands=config.sh_bands,
                                     width=width, height=height)
 
+    @classmethod
+    def op_counts(cls, config, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """vertex_glossy.vert per vertex: H from n² SSBO loads by the triple product over the Γ
+        list (vertex-tp), the n² × n² TPFL matrix (vertex-tpfl) or n⁴ loads of the transfer
+        matrix and an RGB madd each (sloan-matrix); then Phong shading of H towards the eye
+        (shade_transferred). The fragment stage interpolates the radiance (3 varyings)."""
+        from prtbench.tradeoff import cost
+
+        n = config.sh_bands
+        if cls._mode == MODE_MATRIX:
+            product = {"madds": 3.0 * n**4, "fetches": float(n**4), "bytes": 4.0 * n**4}
+        else:
+            loads = {"madds": 0.0, "fetches": float(n * n), "bytes": 4.0 * n * n}
+            product = (cost.triple_product_counts(n) if cls._mode == MODE_TP
+                       else {"madds": cost.tpfl_product_madds(n)})
+            product = cost.add_counts(loads, product)
+        shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
+        per_vertex = cost.add_counts(product, shade)
+        frame = {"bytes": cost.gamma_bytes(n) if cls._mode == MODE_TP else 0.0}
+        return cost.add_counts(
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=3, vertex_bytes=52),
+            cost.scaled(per_vertex, scene_vertices), frame)
+
 
 class _TransferVectorMethod(_GlossyVertexMethod):
     Config = VertexGlossyConfig

@@ -1,6 +1,7 @@
 """The ``prtbench`` command.
 
-Subcommands: ``list``, ``assets``, ``run``, ``reference``, ``results``, ``table``, ``regress``.
+Subcommands: ``list``, ``assets``, ``run``, ``reference``, ``results``, ``table``, ``pareto``,
+``regress``.
 User mistakes print one line (``prtbench: error: …``) and exit with status 2. Heavy modules
 (torch, moderngl, embreex, mitsuba) are imported only by the subcommands that need them, so
 ``prtbench list`` is instant.
@@ -242,6 +243,16 @@ def _advise(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pareto(args: argparse.Namespace) -> int:
+    from .tradeoff.pareto import pareto
+    from .tradeoff.pareto_report import summary_text
+
+    results = pareto(scene=args.scene, light=args.light, error=args.error, cost=args.cost,
+                     profile=args.profile, results_path=args.results, reports_dir=args.reports)
+    print("\n".join(summary_text(r) for r in results))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="prtbench", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -322,6 +333,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="also write the analysis here (strict JSON)")
     p.add_argument("--quiet", action="store_true", help="no per-measurement progress lines")
     p.set_defaults(func=_analyze)
+
+    p = sub.add_parser("pareto", help="Pareto fronts over (error, cost) from the results store")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--light", default=None, help="one light (default: every stored light)")
+    p.add_argument("--error", default="psnr_masked", help="psnr_masked or flip_masked")
+    p.add_argument("--cost", default="frame_ms", help="frame_ms, memory, precompute or ops")
+    p.add_argument("--profile", default="quick")
+    p.add_argument("--results", default=None)
+    p.add_argument("--reports", default="reports")
+    p.set_defaults(func=_pareto)
 
     p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")
     p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")

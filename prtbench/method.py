@@ -169,6 +169,36 @@ class Method(ABC):
                  height: int) -> Renderer:
         """A renderer for ``artifact`` at ``width`` × ``height``."""
 
+    @classmethod
+    def op_counts(cls, config: Any, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """Device-independent work of one frame: the ``ops`` cost model (prtbench.tradeoff.cost).
+
+        Each method declares it beside its code, from what its shaders do per vertex, per
+        covered pixel and per frame; it may use only these stored facts of a result row, so
+        fronts can be drawn from the results store alone.
+
+        Parameters
+        ----------
+        config
+            The method's Config, as stored with the row.
+        scene_vertices, scene_triangles : int
+            Of the rendered scene.
+        covered_pixels : int
+            Pixels of the view covered by geometry.
+        width, height : int
+            Render resolution.
+        memory_bytes : int
+            What the renderer keeps resident.
+
+        Returns
+        -------
+        dict or NotImplemented
+            ``madds``, ``fetches`` and ``bytes`` (floats) per frame; NotImplemented (the
+            default) when the method has no model, so its ``ops`` cost is reported unavailable.
+        """
+        return NotImplemented
+
 
 #: Values of :attr:`Method.light_dependence`, from least to most tied to a light.
 LIGHT_DEPENDENCES = ("none", "fixed-light", "family")

@@ -198,3 +198,43 @@ class DataDrivenPRT(Method):
                                   gamma=config.gamma, shadow_resolution=config.shadow_resolution,
                                   env_shadow_resolution=config.env_shadow_resolution,
                                   env_lights=config.env_lights)
+
+    @classmethod
+    def op_counts(cls, config: DataDrivenConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """One frame of runtime.py under an environment light (every stored light is one):
+        ``env_lights`` median-cut lights, each drawing the scene into its shadow tile of
+        ``env_shadow_resolution``²; the fake G-buffer shading P × supersample points with
+        every light (data_driven_lights.glsl: a projected 4-tap shadow lookup and the light
+        term, ~50 madds and 4 fetches per light); the matrix transfer u = M x (3 channels ×
+        P points × n basis elements, a fetch and a madd each); then per covered pixel (after
+        a depth pre-pass) the same direct lighting and the indirect sum over the basis
+        textures (mono: ⌈n/4⌉ RGBA lookups and 3 coefficient fetches each; interleaved: n)."""
+        from prtbench.tradeoff import cost
+
+        lights, tile = config.env_lights, config.env_shadow_resolution
+        points, n = config.measurement_points, config.basis
+        gamma = config.gamma != 1.0
+        per_light = {"madds": 50.0, "fetches": 4.0, "bytes": 16.0}
+        direct = cost.scaled(per_light, lights)
+        shadow_pass = cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                                         pixels=tile * tile, varyings=3, vertex_bytes=12)
+        shadows = cost.scaled(cost.add_counts(shadow_pass, {"madds": 4.0 * tile * tile}), lights)
+        gbuffer = cost.scaled(cost.add_counts(direct, {"fetches": 3.0, "bytes": 48.0}),
+                              points * config.supersample)
+        transfer = {"madds": 3.0 * points * (n + (cost.TRANSCENDENTAL_MADDS if gamma else 0)),
+                    "fetches": 3.0 * points * (n + 1), "bytes": 3.0 * points * (4 * n + 16)}
+        if config.channels == "interleaved":
+            indirect = {"madds": 3.0 * n, "fetches": 2.0 * n, "bytes": 16.0 * n + 4 * 16.0 * n}
+        else:
+            textures = -(-n // 4)
+            indirect = {"madds": 12.0 * textures, "fetches": 4.0 * textures,
+                        "bytes": textures * (4 * 16.0 + 3 * 16.0)}
+        shade = cost.add_counts(direct, indirect, {
+            "madds": 3 + cost.TRANSCENDENTAL_MADDS + (3 * cost.TRANSCENDENTAL_MADDS if gamma else 0)})
+        return cost.add_counts(
+            shadows, gbuffer, transfer,
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=11, vertex_bytes=44,
+                               depth_prepass=True),
+            cost.scaled(shade, covered_pixels))

@@ -103,3 +103,49 @@ class LearntTransfer(Method):
         from .renderer import GLSLRenderer
 
         return GLSLRenderer(scene, model, config, width=width, height=height)
+
+    @classmethod
+    def op_counts(cls, config: LearntConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """learnt.frag per covered pixel (after the depth pre-pass): one sub-scene network
+        (network_counts), then H by TPFL or TP and Phong shading of H; the weights are read
+        once per frame (immediates in GLSL, a tensor in torch)."""
+        from prtbench.tradeoff import cost
+
+        per_pixel = cost.add_counts(network_counts(config), shade_counts(config))
+        return cost.add_counts(
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=13, vertex_bytes=56,
+                               depth_prepass=True),
+            cost.scaled(per_pixel, covered_pixels), {"bytes": float(memory_bytes)})
+
+
+def network_counts(config) -> dict[str, float]:
+    """One forward pass of learnt_mlp.glsl at one point, in its mat4 blocks.
+
+    The positional encoding (12 sin/cos per frequency), the first layer (⌈(6+12F)/4⌉ × k/4
+    mat4·vec4 blocks of 16 madds), ``layers − 1`` hidden k × k layers, the n²-output layer with
+    its tanh, and a bias and leaky-ReLU per vec4 of every layer. Weights are constants: no
+    fetches. Used by ``learnt`` and ``learnt-sdf``.
+    """
+    from prtbench.tradeoff.cost import TRANSCENDENTAL_MADDS
+
+    in4 = -(-(6 + 12 * config.pe_frequencies) // 4)
+    k4, out4 = config.hidden // 4, -(-config.sh_bands**2 // 4)
+    blocks = in4 * k4 + (config.layers - 1) * k4 * k4 + k4 * out4
+    activations = 4 * 2 * k4 * config.layers + 4 * 2 * out4
+    encode = 12 * config.pe_frequencies * (TRANSCENDENTAL_MADDS + 1) + 6
+    tanh = 4 * out4 * TRANSCENDENTAL_MADDS
+    return {"madds": float(16 * blocks + activations + encode + tanh), "fetches": 0.0, "bytes": 0.0}
+
+
+def shade_counts(config) -> dict[str, float]:
+    """H from the network's T (TPFL matrix or the Γ list, the ``product`` knob) and Phong
+    shading of H (prt_shading.glsl), with the two normalizes."""
+    from prtbench.tradeoff import cost
+
+    n = config.sh_bands
+    product = (cost.triple_product_counts(n) if config.product == "tp"
+               else {"madds": cost.tpfl_product_madds(n)})
+    return cost.add_counts(product, {
+        "madds": cost.shade_transferred_madds(n) + 2 * cost.TRANSCENDENTAL_MADDS})

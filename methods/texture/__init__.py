@@ -207,6 +207,36 @@ class TextureMethod(Method):
         return TextureRenderer(scene, artifact, config, product=cls.product, width=width,
                                height=height)
 
+    @classmethod
+    def op_counts(cls, config: TextureConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """texture_prt.frag per covered pixel (after the depth pre-pass, once each): ⌈n²/4⌉
+        RGBA transfer-texture lookups (bilinear: 4 texels read each), H by the triple product
+        over the Γ list (texture-tp) or the TPFL matrix (texture-tpfl), ⌈3n²/4⌉ more lookups
+        and 3n² adds per baked bounce, then Phong shading of H (shade_transferred). The texture
+        resolution changes what is resident, not the per-pixel work: ``ops`` does not grow
+        with it. Normal maps (one more lookup) are not counted."""
+        from prtbench.tradeoff import cost
+
+        n, n2 = config.sh_bands, config.sh_bands**2
+        texel = 16 if config.storage == "float32" else 8
+        taps = 4 if config.filtering == "bilinear" else 1
+        layers = -(-n2 // 4)
+        bounce_layers = config.bounces * -(-3 * n2 // 4)
+        fetches = layers + bounce_layers
+        lookups = {"madds": 3.0 * n2 * config.bounces, "fetches": float(fetches),
+                   "bytes": float(fetches * taps * texel)}
+        product = (cost.triple_product_counts(n) if cls.product == "tp"
+                   else {"madds": cost.tpfl_product_madds(n)})
+        shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
+        per_pixel = cost.add_counts(lookups, product, shade)
+        frame = {"bytes": cost.gamma_bytes(n) if cls.product == "tp" else 0.0}
+        return cost.add_counts(
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=14, vertex_bytes=92,
+                               depth_prepass=config.depth_prepass),
+            cost.scaled(per_pixel, covered_pixels), frame)
+
 
 def _cached_bounces(scene, atlas, shading, config, *, points, normals, covered_index, transfer,
                     light, dilate, progress) -> np.ndarray:

@@ -1,0 +1,262 @@
+"""The Pareto report of one scene and light: markdown, CSV and an ann-benchmarks style plot.
+
+Every number printed is a stored row's value or a mean of them (:mod:`.pareto`); the CSV keeps
+full float precision. Files are written to a temporary name and renamed into place, so an
+interrupted run leaves the previous report intact. The PNG and SVG carry no date or software
+version (fixed SVG hash salt), so the same store gives the same files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from collections import defaultdict
+from pathlib import Path
+
+from ..cache import atomic_path
+from . import cost as cost_mod
+from .pareto import ERROR_LABELS, ERRORS, ParetoResult, Point
+
+_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "h", "<", ">", "p")
+_CSV_COLUMNS = ("scene", "light", "variant", "width", "height", "profile", "method", "config",
+                "error_kind", "error", "error_unclipped", "clipped", "noise_ceiling_db",
+                "cost_kind", "cost", "on_front", "dominated", "views", "rows", "run_ids",
+                "timing_workers", "ops_madds", "ops_fetches", "ops_bytes", "note")
+
+
+def report_stem(scene: str, light: str) -> str:
+    """``pareto-<scene>-<light>`` with anything but letters, digits, ``.``, ``_`` replaced."""
+    def safe(text: str) -> str:
+        return re.sub(r"[^A-Za-z0-9._]+", "_", Path(text).stem if "/" in text else text)
+
+    return f"pareto-{safe(scene)}-{safe(light)}"
+
+
+def method_style(method: str) -> tuple[str, tuple]:
+    """A marker and colour per method, fixed by its place among the registered methods."""
+    import matplotlib
+
+    from ..method import METHODS
+
+    names = METHODS.names()
+    index = names.index(method) if method in names else len(names) + sum(map(ord, method))
+    colours = matplotlib.colormaps["tab10"].colors
+    return _MARKERS[index % len(_MARKERS)], colours[index % len(colours)]
+
+
+def _knobs(point: Point) -> str:
+    """The knobs that differ from the method's config in the point's profile, ``k=v`` (the
+    whole config if the method is no longer registered)."""
+    from .. import config as config_mod
+    from ..method import METHODS
+
+    try:
+        defaults = config_mod.to_dict(METHODS.get(point.method).make_config({}, profile=point.profile))
+    except Exception:  # a method no longer registered: show everything
+        defaults = {}
+    changed = {k: v for k, v in sorted(point.config.items()) if defaults.get(k, object()) != v}
+    return ", ".join(f"{k}={v}" for k, v in changed.items()) or "(profile defaults)"
+
+
+def _fmt(value: float, digits: int = 4) -> str:
+    if value is None or not math.isfinite(value):
+        return "—"
+    if abs(value) >= 1e5 or (value != 0 and abs(value) < 1e-3):
+        return f"{value:.{digits - 1}e}"
+    return f"{value:.{digits}g}"
+
+
+def _panels(points: list[Point]) -> dict[tuple, list[Point]]:
+    panels: dict[tuple, list[Point]] = defaultdict(list)
+    for p in points:
+        panels[p.panel].append(p)
+    return dict(sorted(panels.items()))
+
+
+def csv_text(result: ParetoResult) -> str:
+    """Every point, one line each (full float precision)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(_CSV_COLUMNS)
+    for p in result.points:
+        writer.writerow([
+            p.scene, p.light, p.variant, p.width, p.height, p.profile, p.method, p.config_json,
+            result.error, repr(p.error), repr(p.error_unclipped), int(p.clipped),
+            "" if p.ceiling_db is None else repr(p.ceiling_db), result.cost,
+            "" if not math.isfinite(p.cost) else repr(p.cost),
+            "" if p.dominated is None else int(not p.dominated),
+            "" if p.dominated is None else int(p.dominated), p.views, p.rows,
+            ";".join(p.run_ids), ";".join(map(str, p.timing_workers)),
+            *(repr(p.ops_counts[k]) if k in p.ops_counts else "" for k in ("madds", "fetches", "bytes")),
+            p.note])
+    return out.getvalue()
+
+
+def _correlation_lines(result: ParetoResult) -> list[str]:
+    """One line per renderer: how well ``ops`` ranks the measured frame times."""
+    lines = []
+    for renderer, c in result.correlation.items():
+        rho_r, p_r, n_r = c["rows"]
+        rho_c, p_c, n_c = c["configs"]
+        where = f"{renderer}; {', '.join(c['devices']) or 'unknown device'}"
+        if not math.isfinite(rho_r) and not math.isfinite(rho_c):
+            lines.append(f"ops model vs measured frame_ms ({where}): too few rows with both "
+                         f"({n_r} rows, {n_c} configurations) for a rank correlation")
+            continue
+        lines.append(f"ops model vs measured frame_ms ({where}): Spearman ρ = {_fmt(rho_r, 3)} "
+                     f"(p = {_fmt(p_r, 2)}) over {n_r} rows of this scene and light, "
+                     f"ρ = {_fmt(rho_c, 3)} (p = {_fmt(p_c, 2)}) over {n_c} configurations")
+    return lines or ["ops model vs measured frame_ms: no timed rows"]
+
+
+def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str) -> str:
+    """The report: provenance, how error and cost are defined, the model check, each front."""
+    from ..results import git_sha
+
+    error, cost = result.error, result.cost
+    unit = cost_mod.COST_UNITS[cost]
+    points = result.points
+    devices = sorted({d for p in points for d in p.devices})
+    renderers = sorted({r for p in points for r in p.renderers})
+    shas = sorted({s for p in points for s in p.git_shas})
+    better = "higher" if ERRORS[error] else "lower"
+    lines = [
+        f"# Pareto front: {result.scene} under {result.light} ({error} vs {cost})", "",
+        f"Generated by `prtbench pareto --scene {result.scene} --light {result.light} "
+        f"--error {error} --cost {cost} --profile {result.profile}` from `{results_path}` "
+        f"(read-only) with prtbench {git_sha()}.", "",
+        f"- Profile: {result.profile}. Rows measured by code version(s): {', '.join(shas) or 'unknown'}.",
+        f"- Renderer(s): {'; '.join(renderers) or 'unknown'}. Device(s): {'; '.join(devices) or 'unknown'}.",
+        f"- Error: {ERROR_LABELS[error]} against the path-traced reference, mean over a "
+        f"configuration's views ({better} is better).",
+    ]
+    if error == "psnr_masked":
+        lines.append("- Noise ceiling: a view's PSNR above −20·log10(reference noise RMSE) of "
+                     "its reference is clipped to that ceiling before averaging (column "
+                     "'clipped'); configurations at the ceiling tie on error.")
+    else:
+        lines.append("- Noise ceiling: none is stored for FLIP (no reference-against-itself FLIP "
+                     "is measured), so FLIP values are not clipped.")
+    cost_text = {
+        "frame_ms": (f"each row's median frame time, averaged over the views, measured on "
+                     f"{'; '.join(renderers) or 'unknown'} ({'; '.join(devices) or 'unknown device'})"
+                     ": device-specific (timer queries on a GPU, host clock around draw + finish "
+                     "on llvmpipe); only rows measured with one worker are averaged where a "
+                     "configuration has any"),
+        "memory": "resident bytes the renderer keeps to draw a frame",
+        "precompute": "precompute wall time (s) of the artifact",
+        "ops": (f"device-independent operations per frame: madds + {cost_mod.OPS_WEIGHTS['fetches']:g}"
+                f"·fetches + {cost_mod.OPS_WEIGHTS['bytes']:g}·bytes (prtbench/tradeoff/cost.py "
+                "and each method's op_counts)"),
+    }[cost]
+    lines += [f"- Cost: {cost} ({unit}): {cost_text}.",
+              *[f"- {line}." for line in _correlation_lines(result)], "",
+              f"![Pareto front]({figure_name}.png)", ""]
+    for (variant, width, height), members in _panels(points).items():
+        front = sorted((p for p in members if p.dominated is False), key=lambda p: p.cost)
+        lines += [f"## {variant} variant, {width}×{height}", "",
+                  f"{len(front)} of {len(members)} configurations on the front.", "",
+                  f"| front | method | knobs | {error} | {cost} ({unit}) | views | clipped | runs |",
+                  "|---|---|---|---:|---:|---:|---|---|"]
+        order = sorted(members, key=lambda p: (p.dominated is not False, p.dominated is None,
+                                               p.cost if math.isfinite(p.cost) else math.inf))
+        for p in order:
+            mark = "yes" if p.dominated is False else ("—" if p.dominated is None else "")
+            runs = ", ".join(p.run_ids) if p.run_ids else "—"
+            lines.append(f"| {mark} | {p.method} | {_knobs(p)} | {_fmt(p.error)} | {_fmt(p.cost)} "
+                         f"| {p.views} | {'yes' if p.clipped else ''} | {runs} |")
+        missing = [p for p in members if p.dominated is None]
+        if missing:
+            lines += ["", "Not placed (cost unknown):"]
+            lines += [f"- {p.method} ({_knobs(p)}): {p.note}" for p in missing]
+        lines.append("")
+    if result.skipped:
+        lines += ["Left out (no finite error):", *[f"- {s}" for s in result.skipped], ""]
+    return "\n".join(lines)
+
+
+def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
+    """ann-benchmarks style: a marker and colour per method, the front as a step line, the
+    better direction labelled, the reference noise ceiling as a horizontal band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot as plt
+
+    panels = _panels(result.points)
+    higher = ERRORS[result.error]
+    with plt.rc_context({"svg.hashsalt": "prtbench-pareto", "font.size": 9}):
+        fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+        for ax, ((variant, width, height), members) in zip(axes[0], panels.items()):
+            placed = [p for p in members if p.dominated is not None]
+            for method in sorted({p.method for p in placed}):
+                marker, colour = method_style(method)
+                mine = [p for p in placed if p.method == method]
+                on = [p for p in mine if not p.dominated]
+                off = [p for p in mine if p.dominated]
+                # Filled: on the front; hollow: dominated. One legend entry per method.
+                if on:
+                    ax.scatter([p.cost for p in on], [p.error for p in on], marker=marker,
+                               color=colour, s=42, label=method, zorder=3, edgecolors="black",
+                               linewidths=0.5)
+                if off:
+                    ax.scatter([p.cost for p in off], [p.error for p in off], marker=marker,
+                               facecolors="none", edgecolors=colour, s=36, zorder=2,
+                               label=None if on else method)
+            front = sorted((p for p in placed if not p.dominated), key=lambda p: (p.cost, -p.error if higher else p.error))
+            if front:
+                ax.step([p.cost for p in front], [p.error for p in front], where="post",
+                        color="black", linewidth=1.2, zorder=1, label="Pareto front")
+            ceilings = [p.ceiling_db for p in members if p.ceiling_db is not None]
+            if result.error == "psnr_masked" and ceilings:
+                lo, hi = min(ceilings), max(ceilings)
+                ax.axhspan(lo - 0.15, hi + 0.15, color="0.6", alpha=0.35, zorder=0,
+                           label="reference noise ceiling")
+            costs = [p.cost for p in placed]
+            if costs and min(costs) > 0 and max(costs) / min(costs) > 20:
+                ax.set_xscale("log")
+            # ann-benchmarks labels the better direction on the axes themselves.
+            ax.set_xlabel(f"{result.cost} ({cost_mod.COST_UNITS[result.cost]})  (better ←)")
+            ax.set_ylabel(f"{ERROR_LABELS[result.error]}  (better {'↑' if higher else '↓'})")
+            ax.set_title(f"{result.scene} / {result.light}: {variant}, {width}×{height}, "
+                         f"{result.profile} (filled: on the front, hollow: dominated)", fontsize=9)
+            ax.grid(True, which="major", alpha=0.3)
+            ax.legend(fontsize=7, loc="best", framealpha=0.8)
+        fig.tight_layout()
+        with atomic_path(png) as tmp:
+            fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
+        with atomic_path(svg) as tmp:
+            fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None})
+        plt.close(fig)
+
+
+def write_reports(result: ParetoResult, *, reports_dir: Path, results_path: Path) -> list[Path]:
+    """``pareto-<scene>-<light>.{md,csv,png,svg}`` in ``reports_dir``, each written atomically."""
+    stem = report_stem(result.scene, result.light)
+    md, csv_path = reports_dir / f"{stem}.md", reports_dir / f"{stem}.csv"
+    png, svg = reports_dir / f"{stem}.png", reports_dir / f"{stem}.svg"
+    plot(result, png=png, svg=svg)
+    with atomic_path(csv_path) as tmp:
+        tmp.write_text(csv_text(result))
+    with atomic_path(md) as tmp:
+        tmp.write_text(markdown_text(result, results_path=results_path, figure_name=stem) + "\n")
+    return [md, csv_path, png, svg]
+
+
+def summary_text(result: ParetoResult) -> str:
+    """What the CLI prints: the front, the model check and where the files went."""
+    front = sorted((p for p in result.points if p.dominated is False),
+                   key=lambda p: (p.panel, p.cost))
+    lines = [f"pareto {result.scene}/{result.light}: {result.error} vs {result.cost} "
+             f"({result.profile}), {len(result.points)} configurations, {len(front)} on the front"]
+    for p in front:
+        lines.append(f"  {p.variant:8s} {p.method:18s} {_knobs(p):40s} {result.error}="
+                     f"{_fmt(p.error)}{' (clipped)' if p.clipped else ''}  {result.cost}={_fmt(p.cost)}")
+    missing = sorted({p.method for p in result.points if p.dominated is None})
+    if missing:
+        lines.append(f"  cost '{result.cost}' unavailable for: {', '.join(missing)}")
+    lines += ["  " + line for line in _correlation_lines(result)]
+    lines += [f"wrote {p}" for p in result.paths]
+    return "\n".join(lines)
