@@ -1,0 +1,216 @@
+"""Precompute on every core it is given: chunks of ray work on a thread pool (DESIGN.md §8).
+
+Embree releases the GIL while it traces, and so does numpy in its large array operations, so
+threads (not processes) parallelise precompute: the scene's BVH is shared, nothing is pickled.
+Every tracer user cuts its work into chunks of points whose boundaries depend only on the
+problem (never on the thread count), computes each chunk with :func:`map_chunks` and reduces the
+results in chunk order. A chunk's random numbers come from per-point or per-chunk seeds, so the
+result is bit-identical whatever the number of threads and whichever thread ran a chunk.
+
+The thread count comes from ``PRTBENCH_THREADS`` (default: every core this process may run
+on). Sweep workers set it to their share of the machine, so that concurrent workers do not
+oversubscribe the cores. Inside a worker thread, nested :func:`map_chunks` calls run inline:
+a chunk function that calls the tracer does not start a second pool.
+
+numpy's OpenBLAS is held to one thread meanwhile: its helper threads would compete with the
+tracing threads for the (small) products and keep spinning after them.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sized
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
+from functools import lru_cache
+from typing import TypeVar
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+#: The environment variable holding the thread count.
+THREADS_VARIABLE = "PRTBENCH_THREADS"
+
+#: Largest accepted thread count (bounds the chunks held in memory at once).
+MAX_THREADS = 256
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+_local = threading.local()
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity; ``os.cpu_count()`` where unknown)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def thread_count() -> int:
+    """Threads precompute may use: ``PRTBENCH_THREADS``, or :func:`available_cores` if unset.
+
+    Raises
+    ------
+    InvalidInputError
+        If the variable is set to anything but an integer 1..MAX_THREADS (an empty value
+        counts as unset).
+    """
+    raw = os.environ.get(THREADS_VARIABLE)
+    if raw is None or not raw.strip():
+        return available_cores()
+    text = raw.strip()
+    value = int(text) if text.isdecimal() else None
+    if value is None or not 1 <= value <= MAX_THREADS:
+        raise InvalidInputError(
+            f"{THREADS_VARIABLE}={raw!r}; accepted: an integer 1..{MAX_THREADS} (threads for "
+            f"precompute ray tracing), or unset for all {available_cores()} usable cores")
+    return value
+
+
+def in_worker() -> bool:
+    """Whether the calling thread is one of :func:`map_chunks`'s workers."""
+    return getattr(_local, "worker", False)
+
+
+# --- BLAS threads -------------------------------------------------------------------------------
+
+@lru_cache(maxsize=1)
+def _openblas_threads() -> tuple[Callable[[], int], Callable[[int], None]] | None:
+    """(get, set) of the thread count of numpy's bundled OpenBLAS, or None if not found."""
+    import ctypes
+    import glob
+
+    libs = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
+    for path in glob.glob(os.path.join(libs, "libscipy_openblas*.so*")):
+        try:
+            lib = ctypes.CDLL(path)  # the copy numpy already loaded: dlopen shares it
+        except OSError:
+            continue
+        for suffix in ("64_", "", "_64_"):
+            get = getattr(lib, f"scipy_openblas_get_num_threads{suffix}", None)
+            put = getattr(lib, f"scipy_openblas_set_num_threads{suffix}", None)
+            if get is not None and put is not None:
+                get.restype, put.argtypes = ctypes.c_int, [ctypes.c_int]
+                return get, put
+    return None
+
+
+_blas_lock = threading.Lock()
+_blas_users = 0
+_blas_previous: int | None = None
+
+
+@contextmanager
+def single_threaded_blas() -> Iterator[None]:
+    """Run numpy's BLAS on one thread meanwhile (a no-op where it is not OpenBLAS).
+
+    The setting is process-wide: overlapping uses (from several threads or nested) are counted,
+    and the first one's previous thread count is restored when the last one ends.
+    """
+    global _blas_users, _blas_previous
+    threads = _openblas_threads()
+    if threads is None:
+        yield
+        return
+    get, put = threads
+    with _blas_lock:
+        if _blas_users == 0:
+            _blas_previous = get()
+            put(1)
+        _blas_users += 1
+    try:
+        yield
+    finally:
+        with _blas_lock:
+            _blas_users -= 1
+            if _blas_users == 0 and _blas_previous is not None:
+                put(_blas_previous)
+                _blas_previous = None
+
+
+# --- chunks on a pool ---------------------------------------------------------------------------
+
+def _run_as_worker(fn: Callable[[T], R], item: T) -> R:
+    _local.worker = True
+    try:
+        return fn(item)
+    finally:
+        _local.worker = False
+
+
+def map_chunks(fn: Callable[[T], R], chunks: Iterable[T], *,
+               threads: int | None = None) -> Iterator[R]:
+    """``fn(chunk)`` for every chunk, computed on a thread pool, yielded in chunk order.
+
+    At most two chunks per thread are in flight (submitted or finished but not yet consumed),
+    which bounds memory while keeping every thread busy. With one thread, a single chunk, or
+    when called from a worker thread of another :func:`map_chunks`, chunks run inline in the
+    calling thread (a single chunk's own tracer queries are then split across the threads).
+    numpy's BLAS runs single-threaded until the iterator is exhausted or closed.
+
+    Parameters
+    ----------
+    fn : callable
+        Computes one chunk. It must not depend on which thread runs it or on the order in
+        which chunks run (seed per chunk or per point), so the results are those of one thread.
+    chunks : iterable
+        The chunk descriptions (typically slices of points), consumed lazily.
+    threads : int, optional
+        Pool size (default: :func:`thread_count`, from ``PRTBENCH_THREADS``).
+
+    Yields
+    ------
+    ``fn(chunk)`` for each chunk, in the order of ``chunks``.
+
+    Raises
+    ------
+    The first exception raised by ``fn``, in chunk order; chunks not yet started are
+    cancelled and running ones are waited for.
+    """
+    n = thread_count() if threads is None else int(threads)  # bad values fail here, eagerly
+    if isinstance(chunks, Sized) and len(chunks) <= 1:
+        n = 1  # one chunk: run it here, so that the tracer inside it may use the threads
+    return _mapped(fn, chunks, n)
+
+
+def _mapped(fn: Callable[[T], R], chunks: Iterable[T], n: int) -> Iterator[R]:
+    with single_threaded_blas():
+        if n <= 1 or in_worker():
+            for chunk in chunks:
+                yield fn(chunk)
+            return
+        upcoming = iter(chunks)
+        queued: deque[Future] = deque()
+        with ThreadPoolExecutor(max_workers=n, thread_name_prefix="prtbench-trace") as pool:
+            def submit() -> None:
+                chunk = next(upcoming, _END)
+                if chunk is not _END:
+                    queued.append(pool.submit(_run_as_worker, fn, chunk))
+
+            try:
+                for _ in range(2 * n):
+                    submit()
+                while queued:
+                    result = queued.popleft().result()
+                    submit()
+                    yield result
+            finally:
+                for future in queued:
+                    future.cancel()
+
+
+_END = object()
+
+
+def parallel_chunks(n_items: int, items_per_chunk: int) -> list[slice]:
+    """Consecutive slices of at most ``items_per_chunk`` items covering ``range(n_items)``.
+
+    The boundaries depend only on the two counts, never on the thread count.
+    """
+    step = max(1, int(items_per_chunk))
+    return [slice(s, min(s + step, n_items)) for s in range(0, int(n_items), step)]
