@@ -176,7 +176,7 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     # all probes up front, so every thread count gives the same bits.
     chunks = parallel_chunks(len(p), step)
     with tqdm(total=len(p), desc="irradiance-volume probes", unit="probe", disable=not progress) as bar:
-        for sl, (vis, back) in zip(chunks, map_chunks(chunk, chunks)):
+        for (vis, back), sl in zip(map_chunks(chunk, chunks), chunks):
             visibility[sl] = vis
             backface[sl] = back
             bar.update(sl.stop - sl.start)

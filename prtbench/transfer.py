@@ -279,7 +279,7 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
 
     # Chunks run on the precompute threads (embree and numpy's large operations release the
     # GIL); each chunk's rays depend only on its points, so any thread count gives these bits.
-    for sl, (t, e) in zip(chunks, map_chunks(chunk, chunks)):
+    for (t, e), sl in zip(map_chunks(chunk, chunks), chunks):  # the pool first: it ends first
         transfer[sl] = t
         if stderr is not None:
             stderr[sl] = e
@@ -456,7 +456,8 @@ def _gather_matrices(tracer: Tracer, albedo: _Albedo, points: np.ndarray, normal
                            shape=(n_rows, n_vertices)) for c in range(3)]
 
     # Chunks are built on the precompute threads and come back in chunk order.
-    yield from zip(chunks, map_chunks(chunk, chunks))
+    for mats, sl in zip(map_chunks(chunk, chunks), chunks):  # the pool first: it ends first
+        yield sl, mats
 
 
 class _Gather:

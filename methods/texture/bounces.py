@@ -175,7 +175,7 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
             # Chunks on the precompute threads (prtbench.parallel), reduced in chunk order;
             # their boundaries depend only on the point count, so results on every thread count.
             chunks = parallel_chunks(len(points), step)
-            for sl, values in zip(chunks, map_chunks(chunk, chunks)):
+            for values, sl in zip(map_chunks(chunk, chunks), chunks):
                 gathered[sl] = values
                 bar.update(sl.stop - sl.start)
             texture = np.zeros((s * r * r, n2 * 3))
