@@ -258,3 +258,18 @@ def test_data_driven_bake_is_identical_on_any_thread_count(monkeypatch):
     assert out["1"].max() > 0 and not np.array_equal(out["1"][0], out["1"][1])
     for count in THREAD_COUNTS[1:]:
         np.testing.assert_array_equal(out["1"], out[count], err_msg=f"PRTBENCH_THREADS={count}")
+
+
+def test_glossy_transfer_matrices_are_identical_on_any_thread_count(monkeypatch, scene):
+    from methods import vertex_glossy
+
+    positions, normals, _, _ = scene.merged()
+    monkeypatch.setattr(vertex_glossy, "_MATRIX_SCRATCH_BYTES", 8 * 64 * 16 * 100)  # 100 points
+    out = {}
+    for count in THREAD_COUNTS:
+        monkeypatch.setenv("PRTBENCH_THREADS", count)
+        out[count] = vertex_glossy.compute_transfer_matrices(
+            scene, positions[:450], normals[:450], bands=4, rays_per_point=64, progress=False)
+    assert np.abs(out["1"]).max() > 0
+    for count in THREAD_COUNTS[1:]:
+        np.testing.assert_array_equal(out["1"], out[count], err_msg=f"PRTBENCH_THREADS={count}")
