@@ -19,6 +19,7 @@ tracing threads for the (small) products and keep spinning after them.
 from __future__ import annotations
 
 import os
+import sys
 import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sized
@@ -100,9 +101,15 @@ def _openblas_threads() -> tuple[Callable[[], int], Callable[[int], None]] | Non
     return None
 
 
-_blas_lock = threading.Lock()
+_settings_lock = threading.Lock()
 _blas_users = 0
 _blas_previous: int | None = None
+_switch_users = 0
+_switch_previous: float | None = None
+
+#: GIL switch interval (s) while a pool runs. A thread coming back from embree waits for the
+#: GIL while another one runs numpy; at Python's default 5 ms it can wait that long per chunk.
+POOL_SWITCH_INTERVAL = 0.0005
 
 
 @contextmanager
@@ -118,7 +125,7 @@ def single_threaded_blas() -> Iterator[None]:
         yield
         return
     get, put = threads
-    with _blas_lock:
+    with _settings_lock:
         if _blas_users == 0:
             _blas_previous = get()
             put(1)
@@ -126,11 +133,64 @@ def single_threaded_blas() -> Iterator[None]:
     try:
         yield
     finally:
-        with _blas_lock:
+        with _settings_lock:
             _blas_users -= 1
             if _blas_users == 0 and _blas_previous is not None:
                 put(_blas_previous)
                 _blas_previous = None
+
+
+@contextmanager
+def _short_switch_interval() -> Iterator[None]:
+    """Python's GIL switch interval at :data:`POOL_SWITCH_INTERVAL` meanwhile (counted, restored)."""
+    global _switch_users, _switch_previous
+    with _settings_lock:
+        if _switch_users == 0:
+            _switch_previous = sys.getswitchinterval()
+            sys.setswitchinterval(min(_switch_previous, POOL_SWITCH_INTERVAL))
+        _switch_users += 1
+    try:
+        yield
+    finally:
+        with _settings_lock:
+            _switch_users -= 1
+            if _switch_users == 0 and _switch_previous is not None:
+                sys.setswitchinterval(_switch_previous)
+                _switch_previous = None
+
+
+class Scratch:
+    """Reusable per-thread work buffers for the chunks of one :func:`map_chunks` loop.
+
+    Fresh large arrays for every chunk cost page faults (and the kernel serialises them between
+    threads); each thread here keeps its own buffers, grown as needed, until the object goes.
+    A buffer is only valid until the same thread asks for the same name again: never return it.
+    """
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    def get(self, name: str, shape: tuple[int, ...], dtype) -> np.ndarray:
+        """An uninitialised array of ``shape`` and ``dtype``, this thread's buffer ``name``."""
+        dtype = np.dtype(dtype)
+        size = int(np.prod(shape))
+        buf = getattr(self._local, name, None)
+        if buf is None or buf.dtype != dtype or buf.size < size:
+            buf = np.empty(size, dtype)
+            setattr(self._local, name, buf)
+        return buf[:size].reshape(shape)
+
+
+def repeat_rows(rows: np.ndarray, count: int, *, out: np.ndarray) -> np.ndarray:
+    """``np.repeat(rows, count, axis=0)`` written into ``out`` (shape (len(rows)·count, C)).
+
+    Rows are copied as opaque records, which is faster than numpy's broadcasting copy.
+    """
+    rows = np.ascontiguousarray(rows)
+    record = np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))
+    target = out.reshape(len(rows), count, rows.shape[1])
+    target.view(record)[..., 0] = rows.view(record)
+    return out
 
 
 # --- chunks on a pool ---------------------------------------------------------------------------
@@ -186,7 +246,8 @@ def _mapped(fn: Callable[[T], R], chunks: Iterable[T], n: int) -> Iterator[R]:
             return
         upcoming = iter(chunks)
         queued: deque[Future] = deque()
-        with ThreadPoolExecutor(max_workers=n, thread_name_prefix="prtbench-trace") as pool:
+        with _short_switch_interval(), \
+                ThreadPoolExecutor(max_workers=n, thread_name_prefix="prtbench-trace") as pool:
             def submit() -> None:
                 chunk = next(upcoming, _END)
                 if chunk is not _END:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
@@ -36,7 +37,8 @@ import numpy as np
 
 from .cache import cached_arrays, content_key
 from .errors import InvalidInputError
-from .parallel import _openblas_threads, map_chunks  # noqa: F401  (re-exported for users)
+from .parallel import Scratch, map_chunks, repeat_rows
+from .parallel import _openblas_threads  # noqa: F401  (re-exported for users)
 from .parallel import single_threaded_blas as _single_threaded_blas
 from .raytrace import Tracer, offset_origins
 from .sh import eval_sh, sphere_quadrature
@@ -122,9 +124,14 @@ class RayPattern:
         for k in range(min(self.n_patterns, sl.stop - sl.start)):
             yield (sl.start + k) % self.n_patterns, slice(k, None, self.n_patterns)
 
-    def world_directions(self, frames: np.ndarray, sl: slice) -> np.ndarray:
-        """(n, M, 3) float32 world directions of the points in ``sl`` with ``frames`` (n, 3, 3)."""
-        out = np.empty((len(frames), self.rays_per_point, 3), dtype=np.float32)
+    def world_directions(self, frames: np.ndarray, sl: slice, *,
+                         out: np.ndarray | None = None) -> np.ndarray:
+        """(n, M, 3) float32 world directions of the points in ``sl`` with ``frames`` (n, 3, 3).
+
+        ``out``, if given, is a C-contiguous (n, M, 3) float32 array to write them into.
+        """
+        if out is None:
+            out = np.empty((len(frames), self.rays_per_point, 3), dtype=np.float32)
         f32 = frames.astype(np.float32)
         for k, rows in self.groups(sl):
             np.matmul(self.local[k].astype(np.float32)[None], f32[rows], out=out[rows])
@@ -193,22 +200,23 @@ class ShRotation:
         d_minus = y.T @ eval_sh(dirs @ _rotation_x(-90.0), bands)
         self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
         self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
-        # (l, m) of every m > 0 coefficient; its partner -m holds the sin(mφ) part.
-        ls = np.array([l for l in range(bands) for _ in range(l)], dtype=int)
-        ms = np.array([m for l in range(bands) for m in range(1, l + 1)], dtype=int)
-        self._pos = (ls * (ls + 1) + ms).astype(int)
-        self._neg = (ls * (ls + 1) - ms).astype(int)
-        self._m_index = ms.astype(int) - 1
 
     def _z(self, c: np.ndarray, angle: np.ndarray) -> None:
         if self.bands < 2:
             return
         # e^{imγ} for m = 1 … n−1 by repeated products: two trig calls per point, not n².
         powers = np.cumprod(np.repeat(np.exp(1j * angle)[:, None], self.bands - 1, axis=1), axis=1)
-        cos, sin = powers.real[:, self._m_index], powers.imag[:, self._m_index]
-        pos, neg = c[:, self._pos], c[:, self._neg]
-        c[:, self._pos] = pos * cos - neg * sin
-        c[:, self._neg] = pos * sin + neg * cos
+        cos, sin = powers.real, powers.imag
+        for l in range(1, self.bands):
+            # Band l's m = 1 … l are columns l²+l+1 … l²+2l and their partners −m run from
+            # l²+l−1 down to l²: slices, not gathers (per-point cost of the rotation).
+            centre = l * l + l
+            pos = c[:, centre + 1:centre + l + 1]
+            neg = c[:, centre - 1:(centre - l - 1 if centre - l - 1 >= 0 else None):-1]
+            cl, sl = cos[:, :l], sin[:, :l]
+            new_pos = pos * cl - neg * sl
+            neg[...] = pos * sl + neg * cl
+            pos[...] = new_pos
 
     def _x(self, c: np.ndarray, blocks: list[np.ndarray]) -> None:
         for l, block in enumerate(blocks):
@@ -245,13 +253,26 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     stderr = np.zeros((len(points), n2), dtype=np.float64) if with_stderr else None
     if not chunks:
         return transfer, stderr
-    rotate = ShRotation(bands)
-    local_sh = None if with_stderr else [eval_sh(d, bands) for d in pattern.local]
+    tables: list = []
+    tables_lock = threading.Lock()
+
+    def sh_tables() -> tuple[ShRotation, list[np.ndarray]]:
+        """(rotation, SH of each local pattern), built by the first chunk done tracing: the
+        other threads' tracing hides the cost."""
+        with tables_lock:
+            if not tables:
+                tables.extend([ShRotation(bands), [eval_sh(d, bands) for d in pattern.local]])
+        return tables[0], tables[1]
+
+    scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
 
     def visibility(sl: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = sl.stop - sl.start
         frames = pattern.frames(normals[sl], sl)
-        dirs = pattern.world_directions(frames, sl)
-        origins = np.repeat(origins_all[sl], m, axis=0)
+        dirs = pattern.world_directions(frames, sl,
+                                        out=scratch.get("dirs", (n, m, 3), np.float32))
+        origins = repeat_rows(origins_all[sl], m, out=scratch.get("origins", (n * m, 3),
+                                                                  np.float32))
         return frames, dirs, ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
 
     def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray | None]:
@@ -271,9 +292,13 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
                 mean[s:s + len(v)] = mu
                 error[s:s + len(v)] = np.sqrt(var / m)
             return mean, error
+        rotate, local_sh = sh_tables()
         local = np.empty((len(visible), n2))
         for k, rows in pattern.groups(sl):
-            local[rows] = visible[rows].astype(np.float64) @ local_sh[k]
+            v = visible[rows]
+            weights = scratch.get("weights", v.shape, np.float64)
+            np.copyto(weights, v)
+            local[rows] = weights @ local_sh[k]
         # frames hold rows (t1, t2, n): the local -> world rotation is their transpose.
         return rotate(local * (np.pi / m), frames.transpose(0, 2, 1)), None
 
