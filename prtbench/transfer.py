@@ -261,7 +261,10 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
         other threads' tracing hides the cost."""
         with tables_lock:
             if not tables:
-                tables.extend([ShRotation(bands), [eval_sh(d, bands) for d in pattern.local]])
+                # One evaluation for all patterns (eval_sh is per direction: same values).
+                local = pattern.local
+                y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
+                tables.extend([ShRotation(bands), list(y)])
         return tables[0], tables[1]
 
     scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
