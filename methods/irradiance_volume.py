@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prtbench import gl
-from prtbench.config import knob
+from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.sh import clamped_cosine_zonal, eval_sh, tpfl_matrix
@@ -70,7 +70,7 @@ class IrradianceVolumeConfig:
         low=0.0, high=1.0)
     precision: str = knob("float32", "Storage of the probe radiance texture.",
                           choices=tuple(PRECISION_BYTES))
-    seed: int = knob(0, "Seed of the ray pattern's shift and the per-probe rotations.")
+    seed: int = seed_knob("Seed of the ray pattern's shift and the per-probe rotations.")
 
 
 def memory_closed_form(*, resolution: int, sh_bands: int, precision: str) -> int:
@@ -195,8 +195,13 @@ class IrradianceVolume(Method):
 
     Config = IrradianceVolumeConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("resolution", "sh_bands")
     summary = "Greger 1998 irradiance volume: N³ SH radiance probes, trilinear lookup per fragment"
     paper = "Greger, Shirley, Hubbard and Greenberg 1998, The Irradiance Volume (IEEE CG&A)"
+    light_dependence = "fixed-light"
+    light_dependence_why = ("computes the probes' radiance R = Γ·V·L on the CPU once per light "
+                            "(N³ triple products)")
     profile_overrides = {
         "smoke": {"rays_per_probe": 64},
         "quick": {"rays_per_probe": 256},

@@ -43,7 +43,7 @@ from prtbench.scene import Texture
 from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
 from methods import SHADER_DIR
-from methods.learnt.config import LearntConfig
+from methods.learnt.config import LearntConfig, check_training_memory
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
 MODEL_VERSION = 1
@@ -246,9 +246,13 @@ class LearntSdf(Method):
     Config = LearntSdfConfig
     # The artifact holds a network fitted to SDF transfer, so it follows that code's version.
     precompute_version = f"1+sdf-transfer-{SDF_TRANSFER_VERSION}"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "hidden")
     summary = ("thesis §4.2.2 learnt transfer on SDFs: sphere tracing + MLP (p, n) -> SH "
                "transfer, GLSL or torch, TPFL/TP")
     paper = "Sirikonda 2023 (PhD thesis), §4.2.2 learnt transfer on SDFs"
+    light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "
+                                      "the TPFL matrix once per light")}
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "sdf-rabbit", "variant": "glossy", "light": "sky"}
 
@@ -271,6 +275,7 @@ class LearntSdf(Method):
         if config.hidden % 4:
             raise InvalidInputError(f"learnt-sdf hidden={config.hidden}; accepted: multiples of "
                                     "4 (the GLSL path packs weights into mat4 blocks)")
+        check_training_memory(cls.name, config)
         if config.device == "cuda":
             from methods.learnt.network import resolve_device
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
@@ -30,7 +30,7 @@ class VertexConfig:
                                low=1, high=1 << 20)
     bounces: int = knob(0, "Interreflection bounces baked into the transfer (Sloan 2002 §5).",
                         low=0, high=8)
-    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+    seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
 
 
 @register_method("vertex")
@@ -39,6 +39,8 @@ class VertexPRT(Method):
 
     Config = VertexConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands",)
     summary = "Sloan 2002 diffuse transfer vectors at vertices, shaded per vertex"
     paper = ("Sloan, Kautz and Snyder 2002, Precomputed Radiance Transfer for Real-Time "
              "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "

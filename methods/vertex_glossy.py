@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
@@ -49,7 +49,7 @@ class VertexGlossyConfig:
                             "non-zeros).", low=1, high=8)
     rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
                                low=1, high=1 << 20)
-    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+    seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
 
 
 @dataclass(frozen=True)
@@ -59,9 +59,9 @@ class SloanMatrixConfig:
     sh_bands: int = knob(5, "SH bands n (an n² × n² transfer matrix per vertex).", low=1, high=8)
     rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
                                low=1, high=1 << 20)
-    seed: int = knob(0, "Seed of the per-vertex random rotations of the ray pattern.")
+    seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
     max_bytes: int = knob(2 << 30, "Largest transfer-matrix buffer accepted (V · n⁴ · 4 bytes).",
-                          low=1)
+                          low=1, high=1 << 40)
 
 
 def _validate_materials(method: str, scene) -> None:
@@ -179,6 +179,10 @@ class _GlossyVertexMethod(Method):
 
     profile_overrides = _PROFILES
     regression_case = {"variant": "glossy"}
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands",)
+    #: On a diffuse scene these render what ``vertex`` renders, at a higher cost.
+    glossy_only = True
     _mode: int
 
     @classmethod
@@ -220,6 +224,8 @@ class VertexTPFL(_TransferVectorMethod):
     summary = "Glossy vertex PRT: transfer vectors × per-light TPFL matrix, per vertex"
     paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
              "textures), §3 fixed-light triple product (TPFL), at vertices")
+    light_dependence = "fixed-light"
+    light_dependence_why = "folds the light into the TPFL matrix M_ik = Σ_j Γ_ijk L_j once per light"
     _mode = MODE_TPFL
 
 

@@ -185,6 +185,63 @@ def _regress(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def _analyze(args: argparse.Namespace) -> int:
+    from . import outputs
+    from .cache import atomic_path
+    from .config import parse_overrides
+    from .lights import get_light
+    from .scene import get_scene
+    from .strict_json import dumps
+    from .tradeoff.analyze import analyze_scene, check_light_changes, format_analysis
+
+    # Every input is checked before any measurement runs or anything is written.
+    check_light_changes(args.light_changes)
+    try:
+        target = float(args.target)
+    except ValueError:
+        target = float("nan")
+    if not 0.0 < target < 1.0:  # NaN fails too
+        raise PrtbenchError(f"--target {args.target}; accepted: a relative error in (0, 1), e.g. 0.01")
+    scene = get_scene(args.scene, variant=args.variant,
+                      **parse_overrides(args.scene_param or []))
+    light = get_light(args.light or scene.default_light)
+    if args.json:
+        outputs.check_file("--json", Path(args.json))
+    if not args.no_render:
+        outputs.check_cache()
+    analysis = analyze_scene(scene, light, light_changes=args.light_changes, target=target,
+                             render_bounces=not args.no_render, progress=not args.quiet)
+    print(format_analysis(analysis))
+    if args.json:
+        with atomic_path(Path(args.json)) as tmp:
+            Path(tmp).write_text(dumps(analysis.to_json(), indent=2) + "\n")
+        print(f"analysis: {args.json}")
+    return 0
+
+
+def _advise(args: argparse.Namespace) -> int:
+    from . import outputs, strict_json
+    from .cache import atomic_path
+    from .tradeoff.advise import advise, format_advice
+
+    if args.json:
+        outputs.check_file("--json", Path(args.json))  # before any work
+    advice = advise(args.scene, args.light, target=args.target, budget=args.budget,
+                    cost=args.cost, profile=args.profile, variant=args.variant,
+                    light_changes=args.light_changes, methods=args.method or None,
+                    results_path=Path(args.results) if args.results else None,
+                    band_margin=args.band_margin, echo=not args.quiet)
+    print(format_advice(advice))
+    if args.json:
+        with atomic_path(Path(args.json)) as tmp:
+            tmp.write_text(strict_json.dumps(advice.to_json(), indent=2))
+        print(f"wrote {args.json}")
+    if not advice.met:
+        print(f"prtbench: target not reached; {advice.hint}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="prtbench", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -253,11 +310,40 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reports", default="reports")
     p.set_defaults(func=_figure)
 
+    p = sub.add_parser("analyze", help="what a scene requires: bands, glossy, shadows, "
+                                       "textures, bounces, light changes")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--variant", default="diffuse", help="material variant: diffuse or glossy")
+    p.add_argument("--light", default=None, help="light name or .exr/.hdr path (default: the scene's)")
+    p.add_argument("--light-changes", default="none", help="none, rotate or family")
+    p.add_argument("--target", default="0.01", help="target relative lighting error (default 0.01)")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
+    p.add_argument("--no-render", action="store_true", help="skip the Mitsuba interreflection renders")
+    p.add_argument("--json", default=None, help="also write the analysis here (strict JSON)")
+    p.add_argument("--quiet", action="store_true", help="no per-measurement progress lines")
+    p.set_defaults(func=_analyze)
+
     p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")
     p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")
     p.add_argument("--method", action="append", help="only these methods")
     p.add_argument("--baselines", default=None, help="baseline file (default tests/baselines/metrics.json)")
     p.set_defaults(func=_regress)
+
+    p = sub.add_parser("advise", help="the cheapest configuration meeting a target, verified by a run")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--light", default=None, help="light name (default: the scene's)")
+    p.add_argument("--variant", default="diffuse", help="material variant: diffuse or glossy")
+    p.add_argument("--target", required=True, help='accuracy, e.g. "psnr_masked>=28,flip_masked<=0.1"')
+    p.add_argument("--budget", default="", help='costs, e.g. "frame_ms<=33,memory<=256MiB"')
+    p.add_argument("--cost", default="frame_ms", help="what cheapest means: frame_ms, memory, precompute or ops")
+    p.add_argument("--profile", default="quick", help="profile of the answer (screening runs at smoke)")
+    p.add_argument("--light-changes", default="none", help="how the lights will change (for the analysis)")
+    p.add_argument("--method", action="append", help="only these methods (default: all)")
+    p.add_argument("--band-margin", type=int, default=2, help="SH bands searched above the required count")
+    p.add_argument("--json", default=None, help="write the answer as JSON here")
+    p.add_argument("--results", default=None, help="results database of the verification run")
+    p.add_argument("--quiet", action="store_true", help="no per-cell progress lines")
+    p.set_defaults(func=_advise)
     return parser
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import os
 import typing
 from collections.abc import Iterable, Mapping
 from typing import Any, TypeVar
@@ -27,6 +29,53 @@ def knob(default: Any, doc: str, *, choices: Iterable[Any] | None = None, low: f
     if isinstance(default, (list, dict)):
         return dataclasses.field(default_factory=lambda: type(default)(default), metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
+
+
+#: Seeds go to numpy, torch and Mitsuba; Mitsuba's are uint32.
+SEED_HIGH = 2**32 - 1
+
+
+def seed_knob(doc: str, default: int = 0) -> Any:
+    """A random-seed knob: integers in [0, 2³² − 1] (what every RNG here accepts)."""
+    return knob(default, doc, low=0, high=SEED_HIGH)
+
+
+def memory_budget() -> int:
+    """Bytes one run may take: this machine's physical memory (16 GiB if unknown)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 16 << 30
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes as a short string (``74.5 GiB``)."""
+    for unit, size in (("TiB", 1 << 40), ("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{int(n)} B"
+
+
+def check_memory(what: str, need: float, *, accepted: str = "", budget: int | None = None,
+                 ) -> None:
+    """Refuse a configuration whose memory estimate ``need`` (bytes) exceeds the budget.
+
+    Parameters
+    ----------
+    what : str
+        The values that make the estimate, e.g. ``"method 'texture-tp' texture_resolution=8192"``.
+    need : float
+        Estimated bytes.
+    accepted : str
+        What would fit (appended to the message), e.g. ``"texture_resolution <= 5000"``.
+    budget : int, optional
+        Bytes available (default :func:`memory_budget`).
+    """
+    budget = memory_budget() if budget is None else budget
+    if need > budget:
+        fits = f"{accepted} " if accepted else ""
+        raise InvalidInputError(f"{what} would need {format_bytes(need)}; accepted: {fits}"
+                                f"(≤ {format_bytes(budget)}, this machine's memory)")
 
 
 def _coerce(cls: type, field: dataclasses.Field, value: Any) -> Any:
@@ -73,9 +122,16 @@ def _coerce(cls: type, field: dataclasses.Field, value: Any) -> Any:
         raise InvalidInputError(
             f"config key '{field.name}' of {cls.__name__} got {value!r}; "
             f"accepted: {', '.join(map(str, meta['choices']))}")
+    # Bounds apply to a number, or to each element of a tuple of numbers.
+    items = value if isinstance(value, tuple) else (value,)
+    if isinstance(value, float) and not math.isfinite(value) and (
+            meta.get("low") is not None or meta.get("high") is not None):
+        raise InvalidInputError(
+            f"config key '{field.name}' of {cls.__name__} got {value!r}; accepted: finite "
+            f"numbers in [{meta.get('low')}, {meta.get('high')}]")
     for bound, ok in (("low", lambda v, b: v >= b), ("high", lambda v, b: v <= b)):
         b = meta.get(bound)
-        if b is not None and value is not None and not ok(value, b):
+        if b is not None and value is not None and not all(ok(v, b) for v in items):
             raise InvalidInputError(
                 f"config key '{field.name}' of {cls.__name__} got {value!r}; accepted: "
                 f"[{meta.get('low')}, {meta.get('high')}]")

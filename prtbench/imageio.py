@@ -7,7 +7,13 @@ All writes are atomic (temporary file, then rename).
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
 import re
+import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -16,36 +22,97 @@ from .cache import atomic_path
 from .errors import InvalidInputError
 
 
+@contextlib.contextmanager
+def _library_output() -> Iterator[list[str]]:
+    """Capture what libraries write to stderr and stdout inside the block.
+
+    OpenEXR's C++ library reports corrupt chunks on file descriptor 2 itself, and its Python
+    binding prints a warning through ``sys.stdout`` (then raises a vaguer exception); either
+    would break our one-line error. The captured lines (file descriptors 2 and 1 first, then
+    Python's streams) are appended to the yielded list when the block ends, so callers fold
+    them into their message.
+    """
+    lines: list[str] = []
+    with contextlib.ExitStack() as stack:
+        sinks = []
+        for fd, stream in ((2, sys.stderr), (1, sys.stdout)):
+            try:
+                saved = os.dup(fd)
+            except OSError:  # no such descriptor (embedded interpreter): nothing to capture
+                continue
+            if stream is not None:
+                stream.flush()
+            sink = stack.enter_context(tempfile.TemporaryFile())
+            os.dup2(sink.fileno(), fd)
+            sinks.append((fd, stream, saved, sink))
+        # The binding also prints through Python's own sys.stdout / sys.stderr objects.
+        python_out = stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
+        python_err = stack.enter_context(contextlib.redirect_stderr(io.StringIO()))
+        try:
+            yield lines
+        finally:
+            texts = []
+            for fd, stream, saved, sink in sinks:
+                if stream is not None:
+                    stream.flush()
+                os.dup2(saved, fd)
+                os.close(saved)
+                sink.seek(0)
+                texts.append(sink.read().decode("utf-8", "replace"))
+            texts += [python_err.getvalue(), python_out.getvalue()]
+            lines.extend(line.strip() for text in texts for line in text.splitlines()
+                         if line.strip())
+
+
+def _exr_error(path: Path, exc: BaseException, lines: list[str]) -> InvalidInputError:
+    """One-line error for an unreadable EXR: the library's own first line, then the binding's."""
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    if lines:
+        first = lines[0]
+        # The library prefixes its lines with the file name: keep only the reason.
+        first = first[len(str(path)) + 1:].strip() if first.startswith(f"{path}:") else first
+        reason = f"{first} ({reason})"
+    return InvalidInputError(f"cannot read EXR '{path}': {reason}")
+
+
 def read_exr(path: str | Path) -> np.ndarray:
     """Read an OpenEXR file's RGB(A) channels as float32 (H, W, 3).
 
     Raises
     ------
     InvalidInputError
-        If the file is missing, unreadable or has no RGB / Y channels.
+        If the file is missing, unreadable or has no RGB / Y channels (one line, with what
+        OpenEXR itself printed on stderr folded in).
     """
     import OpenEXR
 
     path = Path(path)
     if not path.is_file():
         raise InvalidInputError(f"EXR file not found: {path}")
-    try:
-        with OpenEXR.File(str(path), separate_channels=False) as exr:
-            channels = exr.channels()
-    except Exception as exc:  # noqa: BLE001 - the binding raises several types
-        raise InvalidInputError(f"cannot read EXR '{path}': {exc}") from None
-    for name in ("RGB", "RGBA"):
-        if name in channels:
-            return np.ascontiguousarray(channels[name].pixels[..., :3], dtype=np.float32)
-    # Separate channels (R, G, B) or a luminance-only file.
-    with OpenEXR.File(str(path), separate_channels=True) as exr:
-        chans = exr.channels()
-        if all(c in chans for c in "RGB"):
-            return np.stack([chans[c].pixels for c in "RGB"], axis=-1).astype(np.float32)
-        if "Y" in chans:
-            y = chans["Y"].pixels.astype(np.float32)
-            return np.repeat(y[..., None], 3, axis=-1)
-    raise InvalidInputError(f"EXR '{path}' has no RGB or Y channels (has {sorted(chans)})")
+    with _library_output() as lines:
+        try:
+            with OpenEXR.File(str(path), separate_channels=False) as exr:
+                channels = exr.channels()
+                image = next((np.ascontiguousarray(channels[n].pixels[..., :3], dtype=np.float32)
+                              for n in ("RGB", "RGBA") if n in channels), None)
+            if image is None:
+                # Separate channels (R, G, B) or a luminance-only file.
+                with OpenEXR.File(str(path), separate_channels=True) as exr:
+                    chans = exr.channels()
+                    if all(c in chans for c in "RGB"):
+                        image = np.stack([chans[c].pixels for c in "RGB"], -1).astype(np.float32)
+                    elif "Y" in chans:
+                        y = chans["Y"].pixels.astype(np.float32)
+                        image = np.repeat(y[..., None], 3, axis=-1)
+        except Exception as exc:  # noqa: BLE001 - the binding raises several types
+            error: BaseException | None = exc
+        else:
+            error = None
+    if error is not None:
+        raise _exr_error(path, error, lines) from None
+    if image is None:
+        raise InvalidInputError(f"EXR '{path}' has no RGB or Y channels (has {sorted(chans)})")
+    return image
 
 
 def write_exr(path: str | Path, image: np.ndarray, *, metadata: dict[str, str] | None = None) -> None:
@@ -67,8 +134,19 @@ def read_exr_metadata(path: str | Path) -> dict[str, str]:
     """String attributes of an EXR header (what :func:`write_exr` stored as metadata)."""
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as exr:
-        return {k: v for k, v in exr.header().items() if isinstance(v, str)}
+    path = Path(path)
+    with _library_output() as lines:
+        try:
+            with OpenEXR.File(str(path)) as exr:
+                # Copy inside the block: the binding empties the header when the file closes.
+                header = {k: v for k, v in exr.header().items() if isinstance(v, str)}
+        except Exception as exc:  # noqa: BLE001 - the binding raises several types
+            error: BaseException | None = exc
+        else:
+            error = None
+    if error is not None:
+        raise _exr_error(path, error, lines) from None
+    return header
 
 
 def read_hdr(path: str | Path) -> np.ndarray:

@@ -64,6 +64,11 @@ SH_NODE_RULE = ((0.2, 2), (0.8, 3), (1.7, 4), (3.4, 5))
 SH_MAX_NODES = 8
 #: Negative texels down to this fraction of the image mean are filter ringing, clamped to 0.
 NEGATIVE_RINGING_TOLERANCE = 0.05
+#: Largest accepted texel radiance: float32's maximum over a 2³² headroom for the float32 sums
+#: the reference makes of it (Mitsuba's envmap luminance CDF over up to 2²⁷ texels, a sample's
+#: weight ∫L dω ≤ 4π·max, a film pixel's sum of up to 2²¹ samples per pass: 4π·2²¹ < 2²⁵), so
+#: sums stay finite (a reference lit by a texel at this maximum measured finite, peak 1.4e27).
+MAX_RADIANCE = float(np.finfo(np.float32).max) / 2.0**32
 #: Rec. 709 luminance weights, as Mitsuba's ``luminance()``.
 LUMINANCE_WEIGHTS = np.array([0.212671, 0.715160, 0.072169])
 #: File suffixes :func:`get_light` and :func:`load_environment` accept.
@@ -341,14 +346,23 @@ def _validated_image(image: Any, name: str, source: str) -> tuple[np.ndarray, in
             "accepted: (H, 2H, 3) with H >= 3")
     if not np.issubdtype(img.dtype, np.number):
         raise InvalidInputError(f"{label}: image dtype {img.dtype} is not numeric")
-    img = np.ascontiguousarray(img, dtype=np.float32)
     texels = img.shape[0] * img.shape[1]
-    n_nan = int(np.isnan(img).any(axis=-1).sum())
-    n_inf = int(np.isinf(img).any(axis=-1).sum())
+    with np.errstate(invalid="ignore"):
+        n_nan = int(np.isnan(img).any(axis=-1).sum())
+        n_inf = int(np.isinf(img).any(axis=-1).sum())
     if n_nan or n_inf:
         raise InvalidInputError(
             f"{label}: {n_nan + n_inf} of {texels} texels are not finite ({n_nan} NaN, "
             f"{n_inf} Inf); accepted: finite radiance >= 0")
+    # Checked before the float32 cast, which would turn values past float32 into inf.
+    peak = float(np.max(np.abs(img.astype(np.float64))))
+    if peak > MAX_RADIANCE:
+        over = int((np.abs(img.astype(np.float64)) > MAX_RADIANCE).any(axis=-1).sum())
+        raise InvalidInputError(
+            f"{label}: {over} of {texels} texels exceed {MAX_RADIANCE:.3g} (max {peak:.3g}), "
+            "which overflows float32 in the reference; accepted: radiance in "
+            f"[0, {MAX_RADIANCE:.3g}]")
+    img = np.ascontiguousarray(img, dtype=np.float32)
     negative = (img < 0).any(axis=-1)
     if negative.any():
         tolerance = NEGATIVE_RINGING_TOLERANCE * max(float(img.astype(np.float64).mean()), 0.0)

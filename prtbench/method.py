@@ -128,6 +128,17 @@ class Method(ABC):
     summary: ClassVar[str] = ""
     #: The publication the method implements (authors, year, section), for ``prtbench describe``.
     paper: ClassVar[str] = ""
+    #: How rendering depends on the light, which ``prtbench analyze`` rules methods out by:
+    #: ``"none"`` (any light at render time), ``"fixed-light"`` (one light is folded into
+    #: per-light state before rendering, so a light that changes pays a re-fold outside the
+    #: measured frame time) or ``"family"`` (the precompute is learnt from a family of lights;
+    #: a light outside the family is extrapolated). See :data:`LIGHT_DEPENDENCES`.
+    light_dependence: ClassVar[str] = "none"
+    #: Why, in one line, for ``analyze``/``advise`` reports.
+    light_dependence_why: ClassVar[str] = ""
+    #: Knob settings that tie an otherwise light-free method to a light:
+    #: ``{knob: (dependence, light-free value, why)}``.
+    light_baking_knobs: ClassVar[Mapping[str, tuple[str, Any, str]]] = {}
 
     @classmethod
     def make_config(cls, overrides: Mapping[str, Any] | None = None, *, profile: str = "quick"):
@@ -158,6 +169,9 @@ class Method(ABC):
                  height: int) -> Renderer:
         """A renderer for ``artifact`` at ``width`` × ``height``."""
 
+
+#: Values of :attr:`Method.light_dependence`, from least to most tied to a light.
+LIGHT_DEPENDENCES = ("none", "fixed-light", "family")
 
 #: name -> Method subclass, lazily imported.
 METHODS: Registry[type[Method]] = Registry("method", entry_point_group="prtbench.methods")

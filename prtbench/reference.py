@@ -20,17 +20,23 @@ the reference; RMS(A − B) over geometry pixels, scaled to the full spp, estima
 reference's own per-pixel Monte-Carlo error (``noise_rmse`` on linear radiance,
 ``noise_rmse_display`` on display images), so metrics are never reported tighter than that.
 
+Cached EXRs carry their metadata (spp, noise, variant, ...) in the header together with a
+SHA-256 over the pixels and that metadata (:func:`reference_checksum`): an entry whose checksum
+does not match is corrupt, said on stderr and rendered again, never trusted.
+
 Variant: ``$PRTBENCH_MITSUBA_VARIANT`` if set, else the first of ``cuda_ad_rgb``,
 ``llvm_ad_rgb`` (with ``$DRJIT_LIBLLVM_PATH`` pointed at Debian's libLLVM-19 when unset),
-``scalar_rgb`` that works.
+``scalar_rgb`` that works; :func:`check_variant` validates it before any work.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -137,13 +143,14 @@ def select_variant() -> str:
         known = [v for v in mi.variants() if v.endswith("_rgb")]
         if override not in known:
             raise InvalidInputError(
-                f"{VARIANT_ENV}={override!r}; accepted: {', '.join(known)}")
+                f"{VARIANT_ENV}={override!r} is not a Mitsuba RGB variant; accepted (working "
+                f"here): {', '.join(usable_variants()) or '(none)'}")
         try:
             _try_variant(override)
         except Exception as exc:  # noqa: BLE001 - mitsuba raises ImportError/RuntimeError
             raise InvalidInputError(
                 f"{VARIANT_ENV}={override!r} is not usable here ({_one_line(exc)}); "
-                f"accepted: {', '.join(VARIANT_ORDER)} where available") from None
+                f"accepted (working here): {', '.join(usable_variants()) or '(none)'}") from None
         chosen = override
     else:
         chosen = ""
@@ -160,6 +167,40 @@ def select_variant() -> str:
     log.info("mitsuba variant for references: %s", chosen)
     _chosen[override] = chosen
     return chosen
+
+
+def usable_variants() -> list[str]:
+    """The RGB variants of :data:`VARIANT_ORDER` (then any other compiled one) that run here."""
+    import mitsuba as mi
+
+    compiled = [v for v in mi.variants() if v.endswith("_rgb")]
+    order = [v for v in VARIANT_ORDER if v in compiled] + \
+        [v for v in compiled if v not in VARIANT_ORDER]
+    working = []
+    for name in order:
+        try:
+            _try_variant(name)
+        except Exception:  # noqa: BLE001 - a backend that cannot start is simply not listed
+            continue
+        working.append(name)
+    return working
+
+
+def check_variant() -> str:
+    """Validate the reference variant before any work; returns the variant name.
+
+    The runner's ``prepare()`` calls this so that a bad ``$PRTBENCH_MITSUBA_VARIANT`` (unknown,
+    or not usable on this machine) is a one-line error before the precompute, not after it.
+    It activates the variant (:func:`select_variant`), which the reference needs anyway.
+
+    Raises
+    ------
+    InvalidInputError
+        ``$PRTBENCH_MITSUBA_VARIANT`` is unknown or unusable (names it and the working ones).
+    PrtbenchError
+        No variant works here.
+    """
+    return select_variant()
 
 
 def _one_line(exc: BaseException) -> str:
@@ -289,6 +330,25 @@ def reference_key(scene: Scene, light: Any, view: View, *, width: int, height: i
                        height, bounces, spp, seed, mi.__version__, REFERENCE_VERSION)
 
 
+#: EXR header attribute holding :func:`reference_checksum` of the pixels and the metadata.
+CHECKSUM_KEY = "prtbench_checksum"
+
+
+def reference_checksum(image: np.ndarray, metadata: dict[str, str]) -> str:
+    """SHA-256 over the float32 pixels (H, W, 3) and the canonical JSON of ``metadata``.
+
+    Stored in the cached EXR's header, so an edited header (spp, noise, ...) or edited pixels
+    make the entry corrupt instead of being trusted; the checksum key itself is excluded.
+    """
+    pixels = np.ascontiguousarray(image, dtype=np.float32)
+    fields = {k: str(v) for k, v in metadata.items() if k != CHECKSUM_KEY}
+    digest = hashlib.sha256(b"prtbench-reference-checksum-v1\0")
+    digest.update(json.dumps(list(pixels.shape)).encode())
+    digest.update(pixels.tobytes())
+    digest.update(json.dumps(fields, sort_keys=True, separators=(",", ":")).encode())
+    return digest.hexdigest()
+
+
 def _load_cached(path: Path) -> Reference | None:
     from .imageio import read_exr, read_exr_metadata
 
@@ -299,6 +359,9 @@ def _load_cached(path: Path) -> Reference | None:
         image = read_exr(path)
         if meta.get("prtbench_reference") != str(REFERENCE_VERSION):
             raise ValueError("missing prtbench metadata")
+        if meta.get(CHECKSUM_KEY) != reference_checksum(image, meta):
+            raise ValueError("checksum of pixels and metadata does not match"
+                             if CHECKSUM_KEY in meta else "no checksum")
         ref = Reference(image=image, spp=int(meta["spp"]), noise_rmse=float(meta["noise_rmse"]),
                         noise_rmse_display=float(meta["noise_rmse_display"]),
                         variant=meta["variant"], path=path, seconds=float(meta["seconds"]),
@@ -307,6 +370,9 @@ def _load_cached(path: Path) -> Reference | None:
                 or not np.all(np.isfinite(image)):
             raise ValueError("image does not match its metadata")
     except Exception as exc:  # noqa: BLE001 - any failure means a corrupt or partial file
+        # Said on stderr whatever the logging setup: the user sees why it renders again.
+        print(f"[prtbench] cached reference {path.name} is corrupt ({_one_line(exc)}); "
+              "rendering it again", file=sys.stderr, flush=True)
         log.warning("discarding unreadable cached reference %s (%s)", path, _one_line(exc))
         path.unlink(missing_ok=True)
         return None
@@ -388,6 +454,13 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
     seconds = time.perf_counter() - start
     combined = (half_a * spp_a + half_b * spp_b) / spp
     image = combined[..., :3].astype(np.float32)
+    if not np.all(np.isfinite(image)):
+        # The lights layer bounds radiance (lights.MAX_RADIANCE); this guards what slips past
+        # it, so a non-finite image never reaches the cache.
+        raise InvalidInputError(
+            f"light '{getattr(light, 'name', '?')}' makes the reference of scene '{scene.name}' "
+            f"overflow float32 ({int((~np.isfinite(image)).any(axis=-1).sum())} pixels not "
+            "finite); accepted: lights whose radiance fits float32 sums")
     # Alpha is the fraction of a pixel's samples that hit geometry (background is hidden).
     mask = combined[..., 3] > 0
     # Var(A − B) = σ²(1/n_a + 1/n_b) and Var(combined) = σ²/spp for per-sample variance σ².
@@ -399,13 +472,15 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
     ref = Reference(image=image, spp=spp, noise_rmse=noise, noise_rmse_display=noise_display,
                     variant=variant, path=path, seconds=seconds)
     if use_cache:
-        write_exr(path, image, metadata={
+        metadata = {
             "prtbench_reference": str(REFERENCE_VERSION), "kind": reference_kind(),
             "spp": str(spp), "variant": variant, "mitsuba_version": mi.__version__,
             "noise_rmse": repr(noise), "noise_rmse_display": repr(noise_display),
             "seconds": repr(seconds), "width": str(width), "height": str(height),
             "bounces": str(bounces), "seed": str(seed), "scene": scene.name,
-            "light": str(getattr(light, "name", "")), "exposure": repr(scene.exposure)})
+            "light": str(getattr(light, "name", "")), "exposure": repr(scene.exposure)}
+        metadata[CHECKSUM_KEY] = reference_checksum(image, metadata)
+        write_exr(path, image, metadata=metadata)
     log.info("reference %s %dx%d spp=%d bounces=%d: %.1f s (%s), noise display %.5f",
              scene.name, width, height, spp, bounces, seconds, variant, noise_display)
     return ref

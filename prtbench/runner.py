@@ -188,6 +188,10 @@ def prepare(request: RunRequest) -> PreparedRun:
     if request.variant not in VARIANTS:
         raise UnknownNameError("variant", request.variant, VARIANTS)
     reference_method = _reference_method(request.reference, request.profile)
+    if reference_method is None:  # only the path-traced reference needs Mitsuba
+        from .reference import check_variant
+
+        check_variant()  # a bad $PRTBENCH_MITSUBA_VARIANT fails before the precompute
     scene = get_scene(request.scene, variant=request.variant, **dict(request.scene_params))
     light = get_light(request.light or scene.default_light)
     scene = resolve_views(scene, profile, request.views)

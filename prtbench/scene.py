@@ -373,7 +373,22 @@ SceneBuilder = Callable[..., Scene]
 
 #: Scene builders: ``build(*, variant="diffuse", **params) -> Scene``.
 SCENES: Registry[SceneBuilder] = Registry("scene", entry_point_group="prtbench.scenes")
-register_scene = SCENES.register
+
+
+def register_scene(name: str, *, params: dict[str, Any] | None = None,
+                   ) -> Callable[[SceneBuilder], SceneBuilder]:
+    """Decorator registering a scene builder under ``name``.
+
+    ``params`` maps each builder parameter to its :class:`~prtbench.scene_params.SceneParam`
+    (type, range, memory estimate); :func:`get_scene` checks values against it before building.
+    """
+
+    def decorator(builder: SceneBuilder) -> SceneBuilder:
+        builder.scene_params = dict(params or {})  # type: ignore[attr-defined]
+        return SCENES.register(name)(builder)
+
+    return decorator
+
 
 VARIANTS = ("diffuse", "glossy")
 
@@ -389,11 +404,19 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
         if key not in accepted:
             raise InvalidInputError(
                 f"scene '{name}' has no parameter '{key}'; accepted: {', '.join(accepted) or '(none)'}")
-    # Command-line values arrive as strings: give them the type of the builder's default, so
-    # `--scene-param ground_subdivisions=64` and a sweep's int 64 build (and cache) one scene.
-    typed = {key: _typed_param(name, key, value, signature[key].default)
+    from .scene_params import check_extent, check_params
+
+    # Command-line values arrive as strings: give them the declared type (else the type of the
+    # builder's default), so `--scene-param ground_subdivisions=64` and a sweep's int 64 build
+    # (and cache) one scene; declared ranges and memory bounds are checked before building.
+    specs = getattr(builder, "scene_params", {})
+    typed = {key: value if key in specs else _typed_param(name, key, value,
+                                                          signature[key].default)
              for key, value in params.items()}
-    return builder(variant=variant, **typed)
+    typed = check_params(name, specs, typed)
+    scene = builder(variant=variant, **typed)
+    check_extent(scene, typed)
+    return scene
 
 
 def _typed_param(scene: str, key: str, value: Any, default: Any) -> Any:

@@ -17,6 +17,7 @@ fraction 0.24993 against (r/h)² = 0.25, a relative bias of −0.03 % (the inscr
 
 from __future__ import annotations
 
+from prtbench import scene_params as P
 from prtbench.errors import InvalidInputError
 from prtbench.geometry import grid_plane
 from prtbench.scene import Material, Scene, SceneObject, Trajectory, register_scene
@@ -39,7 +40,7 @@ def _check_variant(variant: str) -> None:
         raise InvalidInputError(f"unknown variant '{variant}'; known: {', '.join(GROUND)}")
 
 
-@register_scene("plane")
+@register_scene("plane", params={"size": P.length(), "subdivisions": P.grid_subdivisions()})
 def plane(*, variant: str = "diffuse", size: float = 4.0, subdivisions: int = 1) -> Scene:
     """A square ground plane on y = 0 centred at the origin, normals +Y.
 
@@ -61,7 +62,10 @@ def plane(*, variant: str = "diffuse", size: float = 4.0, subdivisions: int = 1)
                  exposure=0.7, params={"size": size, "subdivisions": subdivisions})
 
 
-@register_scene("sphere-over-plane")
+@register_scene("sphere-over-plane", params={
+    "radius": P.length(), "height": P.length(),
+    "sphere_segments": P.count(low=8, triangles=lambda s: float(s) * s),
+    "plane_size": P.length(), "plane_subdivisions": P.grid_subdivisions()})
 def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: float = 1.0,
                       sphere_segments: int = 64, plane_size: float = 8.0,
                       plane_subdivisions: int = 1) -> Scene:

@@ -7,6 +7,7 @@ and face: ``lo.js`` has 38k triangles, ``hi.js`` 109k.
 
 from __future__ import annotations
 
+from prtbench import scene_params as P
 from prtbench.errors import InvalidInputError
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
@@ -30,7 +31,8 @@ def bust_mesh(resolution: str, *, height: float, rotate_y_degrees: float = 0.0,
                       position=position)
 
 
-@register_scene("bust")
+@register_scene("bust", params={"resolution": P.choice(*RESOLUTIONS),
+                                   "ground_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", resolution: str = "lo", ground_subdivisions: int = 1,
           ) -> Scene:
     """The snowden bust (height 1) on a ground plane.

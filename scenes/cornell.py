@@ -8,6 +8,7 @@ closed slab (surfaces are one-sided) and its own object.
 
 from __future__ import annotations
 
+from prtbench import scene_params as P
 from prtbench.scene import Scene, SceneObject, register_scene
 
 from .common import assemble, check_variant, material
@@ -17,7 +18,7 @@ SIZE = 1.0     # inner edge length
 WALL = 0.04    # slab thickness
 
 
-@register_scene("cornell")
+@register_scene("cornell", params={"skylight": P.real(low=0.0, high=0.9 * SIZE)})
 def build(*, variant: str = "diffuse", skylight: float = 0.3) -> Scene:
     """The Cornell box (inner size 1, floor at y = 0, centred on x = z = 0).
 

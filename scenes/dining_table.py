@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
 
@@ -66,7 +67,7 @@ def glass(*, radius: float = 0.035, height: float = 0.16):
     return lathe(profile, segments=32)
 
 
-@register_scene("dining-table")
+@register_scene("dining-table", params={"floor_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", floor_subdivisions: int = 1) -> Scene:
     """A dining table with four chairs, plates and glasses on a 2·k²-triangle floor.
 

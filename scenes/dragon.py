@@ -8,6 +8,7 @@ dropping its duplicate/fin faces and closing the holes that leaves) for quick ru
 
 from __future__ import annotations
 
+from prtbench import scene_params as P
 from prtbench.errors import InvalidInputError
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
@@ -46,7 +47,8 @@ def _scene(name: str, variant: str, resolution: str, ground_subdivisions: int, *
                     f"decimated dragon ({FILES[resolution]}) for quick runs")
 
 
-@register_scene("dragon")
+@register_scene("dragon", params={"resolution": P.choice(*FILES),
+                                     "ground_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", resolution: str = "full", ground_subdivisions: int = 1,
           ) -> Scene:
     """The Stanford dragon (871k triangles by default) on a 2·k²-triangle ground.
@@ -64,7 +66,7 @@ def build(*, variant: str = "diffuse", resolution: str = "full", ground_subdivis
                   params={"resolution": resolution, "ground_subdivisions": ground_subdivisions})
 
 
-@register_scene("dragon-lo")
+@register_scene("dragon-lo", params={"ground_subdivisions": P.grid_subdivisions()})
 def build_lo(*, variant: str = "diffuse", ground_subdivisions: int = 1) -> Scene:
     """The decimated dragon ``res3`` (46k triangles once cleaned) on a 2·k²-triangle ground."""
     return _scene("dragon-lo", variant, "res3", ground_subdivisions,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
 
@@ -40,7 +41,7 @@ def lion_mesh(*, height: float = 0.7, rotate_y_degrees: float = 0.0,
                       rotate_y_degrees=rotate_y_degrees, position=position)
 
 
-@register_scene("lion")
+@register_scene("lion", params={"ground_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", ground_subdivisions: int = 1) -> Scene:
     """The lion head on a plaque over a 2·k²-triangle ground.
 

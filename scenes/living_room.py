@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
 
@@ -101,7 +102,8 @@ def _front_top_shelves(rng: np.random.Generator) -> tuple[list, list]:
     return boards, items
 
 
-@register_scene("living-room")
+@register_scene("living-room", params={"floor_subdivisions": P.grid_subdivisions(),
+                                          "seed": P.seed()})
 def build(*, variant: str = "diffuse", floor_subdivisions: int = 1, seed: int = 5) -> Scene:
     """A large living room: sofa, bookcase, sideboard and wall shelves on a 7 m × 5 m floor.
 

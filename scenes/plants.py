@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from prtbench import scene_params as P
 from prtbench.errors import InvalidInputError
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, TriangleMesh, register_scene
@@ -105,7 +106,8 @@ def _tall(rng: np.random.Generator, top: np.ndarray, n_leaves: int, height: floa
     return leaves, stems
 
 
-@register_scene("plants")
+@register_scene("plants", params={"ground_subdivisions": P.grid_subdivisions(),
+                                     "ground_size": P.length(low=2.5), "seed": P.seed()})
 def build(*, variant: str = "diffuse", ground_subdivisions: int = 1, ground_size: float = 3.0,
           seed: int = 3) -> Scene:
     """Five potted plants on a ground of 2·k² triangles.

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, Texture, register_scene
 
@@ -124,7 +125,8 @@ def _shelf(x: float, z: float, rng: np.random.Generator) -> tuple[list, list]:
     return frame, books
 
 
-@register_scene("room")
+@register_scene("room", params={"floor_subdivisions": P.grid_subdivisions(),
+                                   "normal_mapped_floor": P.flag()})
 def build(*, variant: str = "diffuse", floor_subdivisions: int = 1,
           normal_mapped_floor: bool = False) -> Scene:
     """A corner of a room: floor, two walls, rug, table with objects, chairs, lamp, shelf.

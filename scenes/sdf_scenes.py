@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from prtbench import scene_params as P
 from prtbench.errors import InvalidInputError
 from prtbench.scene import Material, Scene, register_scene
 from prtbench.sdf import (Box, Capsule, Cone, Cylinder, Ellipsoid, Mirror, Plane, RoundedBox,
@@ -50,6 +51,12 @@ def _as_int(value: Any, name: str, low: int, high: int) -> int:
     if not ok:
         raise InvalidInputError(f"{name}={value!r}; accepted: integers {low}..{high}")
     return int(number)
+
+
+#: ``mc_resolution`` r: a float32 distance grid and a bool mask of at most r³ nodes, and a
+#: marching-cubes mesh of ~8·r² triangles (a surface spanning the grid).
+MC_PARAM = P.count(low=16, high=1024, triangles=lambda r: 8.0 * r * r,
+                   extra_bytes=lambda r: 5.0 * r ** 3)
 
 
 def _check_resolution(mc_resolution: Any) -> int:
@@ -130,7 +137,7 @@ def car_shape() -> SdfNode:
     return union(union(body, fenders, k=0.05), wheels, windows, lights, grille, bumpers, spare)
 
 
-@register_scene("sdf-car")
+@register_scene("sdf-car", params={"mc_resolution": MC_PARAM})
 def build_car(*, variant: str = "diffuse", mc_resolution: int = MC_RESOLUTION) -> Scene:
     """SDF vintage car on the ground (stands in for the thesis's OLD-CAR).
 
@@ -184,7 +191,7 @@ def monster_shape() -> SdfNode:
     return union(figure, eye)
 
 
-@register_scene("sdf-monster")
+@register_scene("sdf-monster", params={"mc_resolution": MC_PARAM})
 def build_monster(*, variant: str = "diffuse", mc_resolution: int = MC_RESOLUTION) -> Scene:
     """SDF one-eyed monster on the ground (stands in for the thesis's MIKE-MONSTER).
 
@@ -245,7 +252,7 @@ def fish_shape() -> SdfNode:
     return union(base, fish, k=0.05)
 
 
-@register_scene("sdf-fish")
+@register_scene("sdf-fish", params={"mc_resolution": MC_PARAM})
 def build_fish(*, variant: str = "diffuse", mc_resolution: int = MC_RESOLUTION) -> Scene:
     """SDF clownfish sculpture on a stand on the ground (stands in for the thesis's FISH).
 
@@ -294,7 +301,7 @@ def rabbit_shape() -> SdfNode:
     return union(figure, nose, eyes)
 
 
-@register_scene("sdf-rabbit")
+@register_scene("sdf-rabbit", params={"mc_resolution": MC_PARAM})
 def build_rabbit(*, variant: str = "diffuse", mc_resolution: int = MC_RESOLUTION) -> Scene:
     """SDF sitting rabbit on the ground (stands in for the thesis's RABBIT).
 
@@ -324,7 +331,9 @@ def build_rabbit(*, variant: str = "diffuse", mc_resolution: int = MC_RESOLUTION
 BUNNY_HEIGHT = 1.2
 
 
-@register_scene("sdf-bunny-neural")
+@register_scene("sdf-bunny-neural", params={"size": P.choice("small", "large"),
+                                               "mc_resolution": MC_PARAM,
+                                               "seed": P.seed(high=2**31 - 1)})
 def build_bunny_neural(*, variant: str = "diffuse", size: str = "small",
                        mc_resolution: int = MC_RESOLUTION, seed: int = 0) -> Scene:
     """The Stanford bunny as a neural SDF on the ground (thesis STANFORD-BUNNY, table 4.3).

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
 
@@ -39,7 +40,7 @@ def saucer(*, radius: float = 0.075) -> object:
     return lathe(profile, segments=48)
 
 
-@register_scene("teaset")
+@register_scene("teaset", params={"table_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", table_subdivisions: int = 1) -> Scene:
     """The teapot, four cups on saucers, a table and a floor.
 

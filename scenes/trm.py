@@ -7,14 +7,16 @@ busts, armadillo) make the scene's four texture-set pieces (PRTT Fig. 3).
 
 from __future__ import annotations
 
+from prtbench import scene_params as P
 from prtbench.geometry import grid_plane
 from prtbench.scene import Scene, SceneObject, register_scene
 
-from .bust import bust_mesh
+from .bust import RESOLUTIONS, bust_mesh
 from .common import asset_mesh, assemble, check_variant, material
 
 
-@register_scene("trm")
+@register_scene("trm", params={"resolution": P.choice(*RESOLUTIONS),
+                                  "ground_subdivisions": P.grid_subdivisions()})
 def build(*, variant: str = "diffuse", resolution: str = "hi", ground_subdivisions: int = 1,
           ) -> Scene:
     """Two snowden busts and the armadillo on a 2·k²-triangle ground.

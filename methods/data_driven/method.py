@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import check_memory, knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
@@ -81,7 +81,7 @@ class DataDrivenConfig:
                                   low=16, high=8192)
     env_shadow_resolution: int = knob(512, "Shadow tile side of each median-cut light.",
                                       low=16, high=4096)
-    seed: int = knob(0, "Seed of points, lights and paths.")
+    seed: int = seed_knob("Seed of points, lights and paths.")
 
 
 def basis_textures(basis: Basis, lightmap, *, layout: str) -> np.ndarray:
@@ -120,9 +120,14 @@ class DataDrivenPRT(Method):
 
     Config = DataDrivenConfig
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("basis",)
     summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
                "lightmap basis driven by a fake G-buffer")
     paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"
+    light_dependence = "family"
+    light_dependence_why = ("indirect light comes from a basis learnt from one family of lights "
+                            "(light_family; default: the environment map rotated about +Y)")
     profile_overrides = {
         "smoke": {"configurations": 8, "measurement_points": 64, "lightmap_resolution": 128,
                   "paths_per_texel": 8, "env_samples": 2, "env_lights": 8, "basis": 4,
@@ -145,6 +150,13 @@ class DataDrivenPRT(Method):
                 raise InvalidInputError(
                     f"method 'data-driven' takes constant kd per object; '{obj.name}' in scene "
                     f"'{scene.name}' is textured")
+        # The dataset's indirect part (N, T, 3) float32 and the basis fit's float64 copy of it
+        # (36 B per configuration and texel), plus the basis textures (12 B per element).
+        texels = config.lightmap_resolution ** 2
+        check_memory(f"method 'data-driven' configurations={config.configurations} x "
+                     f"lightmap_resolution={config.lightmap_resolution}",
+                     36 * config.configurations * texels + 12 * config.basis * texels,
+                     accepted="fewer configurations or a smaller lightmap_resolution")
         if config.light_family == "env-rotations":
             from prtbench.lights import get_light
 

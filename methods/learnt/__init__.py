@@ -23,7 +23,7 @@ from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.scene import Texture
 
-from .config import PROFILE_OVERRIDES, LearntConfig
+from .config import PROFILE_OVERRIDES, LearntConfig, check_training_memory
 
 __all__ = ["LearntTransfer", "LearntConfig"]
 
@@ -34,8 +34,12 @@ class LearntTransfer(Method):
 
     Config = LearntConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "hidden")
     summary = "thesis ch. 4 learnt transfer: MLP (p, n) -> SH transfer, GLSL or torch, TPFL/TP"
     paper = "Sirikonda 2023 (PhD thesis), ch. 4 learnt transfer"
+    light_baking_knobs = {"product": ("fixed-light", "tp", "product=tpfl folds the light into "
+                                      "the TPFL matrix once per light")}
     profile_overrides = PROFILE_OVERRIDES
     regression_case = {"scene": "plants", "variant": "glossy", "light": "sky"}
 
@@ -57,6 +61,7 @@ class LearntTransfer(Method):
         if len(config.grid_cells) != 3 or min(config.grid_cells) < 1:
             raise InvalidInputError(f"learnt grid_cells={config.grid_cells}; accepted: three "
                                     "positive integers, e.g. 2,1,2")
+        check_training_memory(cls.name, config)
         if config.device == "cuda":
             from .network import resolve_device
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prtbench.config import knob
+from prtbench.config import check_memory, knob, seed_knob
 
 #: What changes the trained network. Everything else (renderer, product, GLSL limit) only
 #: changes how the same weights are evaluated, so it is left out of the training cache key.
@@ -69,7 +69,7 @@ class LearntConfig:
         0.9, "Each transfer coefficient is mapped affinely so the training targets span "
              "[-margin, margin] of tanh's range: tanh never has to saturate to reach a target.",
         low=0.1, high=0.999)
-    seed: int = knob(0, "Seed of sampling, ray patterns, initialisation and batch order.")
+    seed: int = seed_knob("Seed of sampling, ray patterns, initialisation and batch order.")
     device: str = knob("auto", "Torch device for training and the torch renderer: auto (CUDA "
                        "when available), cpu or cuda.", choices=("auto", "cpu", "cuda"))
     # --- large scenes (thesis §4.1.5) ---------------------------------------------------------
@@ -77,7 +77,8 @@ class LearntConfig:
         "none", "Sub-scenes with one small MLP each: none, grid (bounding-box cells, "
                 "grid_cells) or objects (semantic: objects grouped by name prefix before '.').",
         choices=("none", "grid", "objects"))
-    grid_cells: tuple[int, ...] = knob((2, 1, 2), "Cells along x, y, z of the grid partition.")
+    grid_cells: tuple[int, ...] = knob((2, 1, 2), "Cells along x, y, z of the grid partition.",
+                                         low=1, high=64)
     overlap: float = knob(0.1, "δ: each sub-scene also trains on the points within δ × its "
                           "box size beyond its border (thesis fig. 4.5).", low=0.0, high=1.0)
     merge_variance: float = knob(
@@ -113,3 +114,19 @@ PROFILE_OVERRIDES = {
     "paper": {"samples": 1_000_000, "rays_per_point": 1024, "object_balance": 0.0,
               "epochs": 200},
 }
+
+
+def training_bytes(config: LearntConfig) -> float:
+    """Estimated peak bytes of training: the float32 samples (points, normals, n² targets) held
+    twice (numpy and torch), and per mini-batch row the activations, gradients and leaky-ReLU
+    masks of every hidden layer (16 B per neuron)."""
+    per_sample = 2 * (24 + 4 * config.sh_bands ** 2)
+    return float(config.samples * per_sample
+                 + config.batch_size * config.hidden * config.layers * 16)
+
+
+def check_training_memory(method: str, config: LearntConfig) -> None:
+    """One-line error when :func:`training_bytes` exceeds this machine's memory."""
+    check_memory(f"method '{method}' samples={config.samples}, batch_size={config.batch_size}, "
+                 f"hidden={config.hidden}, layers={config.layers}", training_bytes(config),
+                 accepted="fewer samples or a smaller batch_size x hidden x layers")

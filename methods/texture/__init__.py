@@ -30,13 +30,14 @@ each T_b ceil(3n²/4) layers, at 4 (float32) or 2 (float16) bytes per channel.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from prtbench.config import knob
+from prtbench.config import check_memory, knob, memory_budget, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 from prtbench.scene import Texture
@@ -75,7 +76,7 @@ class TextureConfig:
     bounce_light: str = knob(
         "", "Light baked into the bounce textures (registry name or HDR path; empty: the "
             "scene's default light). Rendering under another light is an error.")
-    seed: int = knob(0, "Seed of the per-texel ray patterns.")
+    seed: int = seed_knob("Seed of the per-texel ray patterns.")
 
 
 class TextureMethod(Method):
@@ -83,7 +84,11 @@ class TextureMethod(Method):
 
     Config = TextureConfig
     precompute_version = "1"
+    #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
+    main_knobs = ("sh_bands", "texture_resolution")
     product: ClassVar[str] = "tpfl"
+    light_baking_knobs = {"bounces": ("fixed-light", 0, "bounces > 0 bakes bounce_light into "
+                                      "the interreflection textures")}
     regression_case = {"variant": "glossy"}
     profile_overrides = {
         # Small atlases need thin padding to pack ~20k-triangle scenes (plants, room) at 128².
@@ -115,6 +120,16 @@ class TextureMethod(Method):
             raise InvalidInputError(
                 f"padding={config.padding} with texture_resolution={config.texture_resolution}; "
                 "accepted: padding <= texture_resolution / 8")
+        # Per texel and texture: G-buffer (29 B), float64 points and normals (48 B), then per
+        # coefficient and transfer texture the float64 transfer, its dilated copy and the
+        # float32 result (28 B).
+        sets = len(scene.objects) if config.texture_sets else 1
+        per_texel = 80 + 28 * config.sh_bands**2 * (1 + config.bounces)
+        res = config.texture_resolution
+        fits = int(math.sqrt(memory_budget() / (sets * per_texel)))
+        check_memory(f"method '{cls.name}' texture_resolution={res} ({sets} texture(s), "
+                     f"sh_bands={config.sh_bands}, bounces={config.bounces})",
+                     sets * res * res * per_texel, accepted=f"texture_resolution <= {fits}")
         if config.bounces > 0:
             cls.bake_light(scene, config)  # unknown names fail before any work
 
@@ -234,3 +249,5 @@ class TextureTPFL(TextureMethod):
     summary = "PRTT transfer textures, per-fragment fixed-light triple product matrix (TPFL)"
     paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
              "textures), Algorithms 1 and 2, TPFL shading")
+    light_dependence = "fixed-light"
+    light_dependence_why = "folds the light into the TPFL matrix M_ik = Σ_j Γ_ijk L_j once per light"

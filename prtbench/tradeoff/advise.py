@@ -1,0 +1,395 @@
+"""``prtbench advise``: the cheapest configuration that meets a target, verified by a real run.
+
+1. **Prune** (:mod:`.search_space`): from the scene analysis, drop the methods and knob
+   ranges that cannot model what the scene requires or model more than it needs; every
+   pruned method is reported with its reason.
+2. **Search adaptively** (:mod:`.search`), never the whole grid: a monotone lattice search
+   per method (a measurement that misses an accuracy bound rules out everything below it,
+   one that meets all rules out everything above it), about O(log n) runs per knob. Over
+   fidelity this is **successive halving**: when the requested profile is larger than
+   ``smoke`` and more than two methods remain, all are first searched at ``smoke``, the
+   better ``keep_fraction`` of them (at least two; by target shortfall, then cost) go on to
+   the requested profile, where each search starts from its ``smoke`` optimum and stays
+   near it unless a cheaper feasible candidate may lie further out.
+3. **Verify**: the winner is run again in the requested profile with its rows stored in the
+   results store, and the answer reports that run's numbers; the advisor never answers from
+   a model or a screening run alone. If the verified run misses, the runner-up is verified.
+
+A target nothing reaches is not an error: :class:`Advice` holds the closest configuration
+(least relative shortfall) and ``hint`` says what would be needed, from the knobs that sat at
+the limit of their range and the analysis; the CLI exits 1.
+
+``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones). The
+defaults reach the sibling modules ``analyze`` and ``cost`` when present, and evaluate cells
+serially in this process; the lines to change for ``sweep.run_cells`` are marked WIRING.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import InvalidInputError, PrtbenchError, UnknownNameError
+from .expressions import COSTS, Constraint, parse_constraints
+from .search import (CellResult, Evaluation, Judge, as_dict, best_per_method, brief, fmt,
+                     normalise, search)
+from .search_space import Candidate, SearchSpace, analysis_json, build_space
+
+#: Row field of each cost kind the fallback ``cost_fn`` reads.
+_ROW_COSTS = {"frame_ms": "frame_ms", "memory": "memory_bytes", "precompute": "precompute_s"}
+
+
+@dataclass
+class Advice:
+    """The advisor's answer (``to_json`` is the ``--json`` document)."""
+
+    choice: Evaluation
+    met: bool
+    hint: str
+    cost_kind: str
+    evaluated: int
+    grid_size: int
+    runner_up: Evaluation | None
+    pruned: list[dict[str, str]]
+    analysis: dict[str, Any]
+    constraints: list[Constraint]
+    history: list[Evaluation] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"method", "config", "metrics", "frame_ms", "memory_bytes", "precompute_s",
+        "cost_kind", "evaluated", "grid_size", "runner_up", "pruned", "analysis"}``."""
+        out = _evaluation_json(self.choice)
+        out.pop("cost")
+        return {**out, "cost_kind": self.cost_kind, "evaluated": self.evaluated,
+                "grid_size": self.grid_size,
+                "runner_up": _evaluation_json(self.runner_up) if self.runner_up else None,
+                "pruned": list(self.pruned), "analysis": self.analysis}
+
+
+def _evaluation_json(e: Evaluation) -> dict[str, Any]:
+    row = e.row or {}
+    return {"method": e.candidate.method, "config": dict(row.get("config") or e.candidate.overrides),
+            "metrics": dict(row.get("metrics") or {}), "frame_ms": row.get("frame_ms"),
+            "memory_bytes": row.get("memory_bytes"), "precompute_s": row.get("precompute_s"),
+            "cost": e.cost}
+
+
+# --- defaults (fallbacks until the sibling modules are merged) --------------------------------
+
+def _default_analysis(scene, light, *, light_changes: str):
+    try:
+        from .analyze import analyze_scene  # WIRING: prtbench.tradeoff.analyze (analyze helper)
+    except ImportError:
+        raise PrtbenchError("advise needs the scene analysis (prtbench.tradeoff.analyze), which "
+                            "this build lacks; pass analysis= explicitly") from None
+    return analyze_scene(scene, light, light_changes=light_changes)  # WIRING
+
+
+def _row_cost(row: Mapping, kind: str) -> float:
+    """Fallback cost: frame_ms, memory (bytes) or precompute (s) straight from the row."""
+    if kind not in _ROW_COSTS:
+        raise InvalidInputError(f"--cost {kind} needs the operation-count model "
+                                "(prtbench.tradeoff.cost), which this build lacks; accepted "
+                                f"here: {', '.join(_ROW_COSTS)}")
+    value = row.get(_ROW_COSTS[kind])
+    return math.inf if value is None else float(value)
+
+
+def _default_cost_fn() -> Callable[[Mapping, str], float]:
+    try:
+        from .cost import cost_value  # WIRING: prtbench.tradeoff.cost (pareto helper)
+    except ImportError:
+        return _row_cost
+    return cost_value
+
+
+def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None = None,
+                    store: bool = False) -> list[CellResult]:
+    """Run cells one after another in this process through the ordinary runner.
+
+    Parameters
+    ----------
+    cells : sequence of prtbench.reproduction.Cell
+    profile : str
+    results_path : Path, optional
+        The store the rows go to when ``store``.
+    store : bool
+        Append the rows to the results store (the verification run does; screening does not).
+
+    Returns
+    -------
+    list of CellResult
+        One per cell, in order; a cell that fails has its one-line error and no rows.
+    """
+    from ..runner import RunRequest, execute, prepare, summary_rows
+
+    out = []
+    for cell in cells:
+        try:
+            prepared = prepare(RunRequest(
+                method=cell.method, scene=cell.scene, variant=cell.variant, light=cell.light,
+                views=cell.views, profile=profile, reference=cell.reference,
+                overrides=dict(cell.overrides), scene_params=dict(cell.scene_params),
+                out_dir=None, results_path=results_path, store_results=store,
+                write_images=False))
+            summary = execute(prepared, progress=False, echo=False)
+            out.append(CellResult([as_dict(r) for r in summary_rows(summary, prepared.scene)]))
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # one failing cell must not abort the search
+            text = str(exc).splitlines()[0] if str(exc) else ""
+            out.append(CellResult([], f"{type(exc).__name__}: {text}"))
+    return out
+
+
+def _hint(choice: Evaluation, space: SearchSpace, judge: Judge,
+          history: Sequence[Evaluation]) -> str:
+    """What would be needed to reach the target, from the knobs at their limit and the analysis."""
+    if choice.row is None:
+        return f"no configuration could be measured (e.g. {choice.error})"
+    missed = [f"{c.name} {fmt(choice.values.get(c.name))} (wanted {c.describe()})"
+              for c in choice.failed]
+    parts = [f"closest: {choice.candidate.method} {choice.candidate.label()} misses "
+             + "; ".join(missed)]
+    accurate = [e for e in history if e.row is not None and not e.error
+                and e.profile == choice.profile and all(c.kind == "cost" for c in e.failed)]
+    if accurate:  # the target is reachable, the budget is what is missed
+        e = min(accurate, key=lambda e: (e.shortfall, e.cost))
+        over = "; ".join(f"{c.name} {fmt(e.values.get(c.name))} > {c.describe()}" for c in e.failed)
+        parts.append(f"the target is met by {e.candidate.method} {e.candidate.label()}, but it "
+                     f"breaks the budget ({over}): raise the budget or lower the target")
+        return "; ".join(parts)
+    method_space = space.space_of(choice.candidate.method)
+    values = choice.candidate.overrides
+    # Past the SH band limit: spatial detail (texels) or an all-frequency basis.
+    instead = ("; use wavelets" if "texture_resolution" in values
+               else "; use texture methods or wavelets")
+    for knob, why in method_space.shortfalls.items():
+        parts.append(f"{why}: needs > {values.get(knob)} {knob.replace('sh_', '')}"
+                     + (instead if knob == "sh_bands" else ""))
+    for knob in method_space.at_top(choice.candidate):
+        high = method_space.highs.get(knob)
+        if high is not None and values[knob] >= high:
+            parts.append(f"needs {knob} > {values[knob]}, the top of its range"
+                         + (instead if knob == "sh_bands" else ""))
+        else:
+            parts.append(f"{knob} was searched up to {values[knob]}"
+                         f"{f' of a range up to {high:g}' if high is not None else ''}"
+                         + (" (raise --band-margin)" if knob == "sh_bands" else ""))
+    return "; ".join(parts)
+
+
+def parse_cost_kind(kind: str) -> str:
+    if kind not in COSTS:
+        raise UnknownNameError("cost kind", kind, COSTS)
+    return kind
+
+
+def advise(scene: str, light: str | None = None, *, target: str | Sequence[Constraint],
+           budget: str | Sequence[Constraint] | None = None, cost: str = "frame_ms",
+           profile: str = "quick", variant: str = "diffuse", light_changes: str = "none",
+           analysis: Any = None, evaluate: Callable | None = None,
+           cost_fn: Callable[[Mapping, str], float] | None = None,
+           verify: Callable | None = None, methods: Sequence[str] | None = None,
+           results_path: Path | None = None, band_margin: int = 2, keep_fraction: float = 0.5,
+           echo: bool = False) -> Advice:
+    """Recommend the cheapest configuration of any method that meets ``target`` within ``budget``.
+
+    Parameters
+    ----------
+    scene, light : str
+        Scene name and light name (None: the scene's default light).
+    target, budget : str or list of Constraint
+        ``"psnr_masked>=28"``; ``"frame_ms<=33,memory<=256MiB"`` (see :mod:`.expressions`).
+    cost : str
+        What "cheapest" means: ``frame_ms``, ``memory``, ``precompute`` or ``ops``.
+    profile : str
+        The profile of the answer (searches start at ``smoke`` when it is larger).
+    variant, light_changes : str
+        Material variant; how the lights will change (passed to the analysis).
+    analysis : SceneAnalysis-like, optional
+        Default: :func:`prtbench.tradeoff.analyze.analyze_scene`.
+    evaluate : callable ``(cells, *, profile) -> list``, optional
+        Measures cells, one result per cell (rows, or a sweep ``CellOutcome``); default
+        :func:`serial_evaluate` without storing.
+    cost_fn : callable ``(row, kind) -> float``, optional
+        Default: :func:`prtbench.tradeoff.cost.cost_value` when present, else the row's own
+        frame_ms / memory_bytes / precompute_s.
+    verify : callable ``(cells, *, profile) -> list``, optional
+        The final, stored run; default :func:`serial_evaluate` with ``store=True``.
+    methods : sequence of str, optional
+        Search only these registered methods (default: all).
+    results_path : Path, optional
+        Results store of the verification rows.
+    band_margin : int
+        SH bands searched above the analysis' required count.
+    keep_fraction : float
+        Fraction of methods kept after the ``smoke`` screening (at least two).
+
+    Returns
+    -------
+    Advice
+
+    Raises
+    ------
+    PrtbenchError
+        Bad scene, light, variant, profile, expressions, cost kind or results store (all
+        checked before any work).
+    """
+    from .. import outputs
+    from ..lights import get_light
+    from ..method import METHODS
+    from ..profiles import get_profile
+    from ..reproduction import Cell
+    from ..results import default_path
+    from ..scene import SCENES, get_scene
+
+    # Everything a user can get wrong, before any work.
+    get_profile(profile)
+    constraints = (parse_constraints(target, option="--target", kinds=("metric",))
+                   if isinstance(target, str) else list(target))
+    constraints += (parse_constraints(budget, option="--budget", kinds=("cost",))
+                    if isinstance(budget, str) and budget.strip() else list(budget or []))
+    cost = parse_cost_kind(cost)
+    if not 0 < keep_fraction <= 1:
+        raise InvalidInputError(f"keep_fraction {keep_fraction}; accepted: (0, 1]")
+    if band_margin < 0:
+        raise InvalidInputError(f"--band-margin {band_margin}; accepted: 0 or more")
+    SCENES.check(scene)
+    for name in methods or ():
+        METHODS.check(name)
+    scene_obj = get_scene(scene, variant=variant)
+    light_obj = get_light(light or scene_obj.default_light)
+    cost_fn = cost_fn or _default_cost_fn()
+    if cost_fn is _row_cost:
+        needs = {cost, *(c.name for c in constraints if c.kind == "cost")}
+        for kind in sorted(needs - set(_ROW_COSTS)):
+            _row_cost({}, kind)  # raises naming the missing model
+    if verify is None:
+        outputs.check_results_store("--results", results_path or default_path())
+        outputs.check_cache()
+    # WIRING (sweep): evaluate = evaluate or (lambda cells, *, profile: run_cells(
+    #     cells, profile=profile, progress=False).cells) -- CellOutcomes are accepted as they are.
+    evaluate = evaluate or (lambda cells, *, profile: serial_evaluate(cells, profile=profile))
+    verify = verify or (lambda cells, *, profile: serial_evaluate(
+        cells, profile=profile, results_path=results_path, store=True))
+
+    if analysis is None:
+        analysis = _default_analysis(scene_obj, light_obj, light_changes=light_changes)
+    space = build_space(scene_obj, analysis, profile=profile, methods=methods,
+                        band_margin=band_margin)
+    if not space.methods:
+        raise PrtbenchError("no method can model this scene within the analysis' requirements: "
+                            + "; ".join(f"{p['method']}: {p['why']}" for p in space.pruned))
+
+    def cell(c: Candidate) -> Cell:
+        return Cell(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
+                    light=light, overrides=c.overrides)
+
+    def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:
+        results = list(evaluate([cell(c) for c in batch], profile=at))
+        if len(results) != len(batch):
+            raise PrtbenchError(f"evaluate returned {len(results)} results for {len(batch)} cells")
+        return [normalise(r) for r in results]
+
+    judge = Judge(constraints, cost, cost_fn)
+    names = [m.method for m in space.methods]
+    history, notes, pruned = [], [], list(space.pruned)
+    starts: dict[str, Candidate] = {}
+    if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
+        screen = search(space, names, profile="smoke", run_batch=run_batch, judge=judge, echo=echo)
+        history += screen
+        best = best_per_method(screen)
+        ranked = sorted(best.values(), key=Evaluation.key)
+        keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
+        kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
+        for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
+            pruned.append({"method": e.candidate.method, "why": (
+                f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
+                + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
+        names = [e.candidate.method for e in kept]
+        starts = {e.candidate.method: e.candidate for e in kept}
+        notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
+                     f"{', '.join(names)}")
+    final = search(space, names, profile=profile, run_batch=run_batch, judge=judge,
+                   starts=starts, echo=echo)
+    history += final
+    ranked = sorted(final, key=Evaluation.key)
+    if not ranked or ranked[0].row is None:
+        raise PrtbenchError("no candidate could be measured: "
+                            + "; ".join(f"{e.candidate.method} {e.candidate.label()}: {e.error}"
+                                        for e in final[:5]))
+
+    def runner_up_of(choice: Evaluation) -> Evaluation | None:
+        # The next feasible one, of another method where possible; else the next closest.
+        others = [e for e in ranked if e.candidate != choice.candidate and e.row is not None]
+        feasible = [e for e in others if e.feasible]
+        other_methods = [e for e in feasible if e.candidate.method != choice.candidate.method]
+        return (other_methods or feasible or others or [None])[0]
+
+    # Verify: the answer's numbers are those of a real, stored run in the requested profile.
+    verified = None
+    tried = [ranked[0]] + ([r] if (r := runner_up_of(ranked[0])) is not None and r.feasible else [])
+    for pick in tried:
+        result = normalise(list(verify([cell(pick.candidate)], profile=profile))[0])
+        verified = judge(pick.candidate, profile, result)
+        if verified.feasible or not pick.feasible:
+            break
+        notes.append(f"verification of {pick.candidate.method} {pick.candidate.label()} missed "
+                     f"({brief(verified, judge)}); trying the runner-up")
+    if verified.row is None:
+        raise PrtbenchError(f"the verification run of {verified.candidate.method} "
+                            f"{verified.candidate.label()} failed: {verified.error}")
+    met = verified.feasible
+    hint = "" if met else _hint(verified, space, judge, final)
+    return Advice(choice=verified, met=met, hint=hint, cost_kind=cost, evaluated=len(history),
+                  grid_size=space.size, runner_up=runner_up_of(verified),
+                  pruned=pruned, analysis=analysis_json(analysis), constraints=constraints,
+                  history=history, notes=notes)
+
+
+def format_advice(advice: Advice, *, top: int = 8) -> str:
+    """The terminal report: analysis, pruning, search, the best candidates and the answer."""
+    judge_names = list(dict.fromkeys(c.name for c in advice.constraints))
+    lines = ["analysis: " + " ".join(f"{k}={v}" for k, v in advice.analysis.items()
+                                     if not isinstance(v, (dict, list)))]
+    if advice.pruned:
+        width = max(len(p["method"]) for p in advice.pruned)
+        lines.append("pruned:")
+        lines += [f"  {p['method']:<{width}}  {p['why']}" for p in advice.pruned]
+    lines.append(f"search: {advice.evaluated} cells evaluated for a grid of {advice.grid_size} "
+                 f"(+1 verification run)")
+    lines += [f"  {n}" for n in advice.notes]
+    final = [e for e in advice.history if e.profile == advice.choice.profile and e.row]
+    shown = judge_names + ([] if advice.cost_kind in judge_names else [advice.cost_kind])
+    header = ["method", "config", *shown, "meets"]
+    rows = []
+    for e in sorted(final, key=Evaluation.key)[:top]:
+        values = [e.values.get(name) for name in judge_names]
+        values += [] if advice.cost_kind in judge_names else [e.cost]
+        rows.append([e.candidate.method, e.candidate.label(), *map(fmt, values),
+                     "yes" if e.feasible else "no"])
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    lines.append(f"best candidates at the {advice.choice.profile} profile:")
+    lines += ["  " + "  ".join(str(v).ljust(w) for v, w in zip(r, widths)).rstrip()
+              for r in [header, *rows]]
+    c = advice.to_json()
+    mem = c["memory_bytes"]
+    lines.append(f"{'choice' if advice.met else 'closest (target not reached)'} (verified, stored): "
+                 f"{c['method']} {advice.choice.candidate.label()}: "
+                 + ", ".join(f"{k} {fmt(c['metrics'].get(k))}" for k in judge_names
+                             if k in c["metrics"])
+                 + f"; frame {fmt(c['frame_ms'])} ms, memory "
+                 f"{fmt(mem / 2 ** 20 if mem is not None else None)} MiB, precompute "
+                 f"{fmt(c['precompute_s'])} s, {advice.cost_kind} {fmt(advice.choice.cost)}")
+    if advice.runner_up is not None:
+        lines.append(f"runner-up: {advice.runner_up.candidate.method} "
+                     f"{advice.runner_up.candidate.label()} ({advice.cost_kind} "
+                     f"{fmt(advice.runner_up.cost)})")
+    if not advice.met:
+        lines.append(f"needed: {advice.hint}")
+    return "\n".join(lines)

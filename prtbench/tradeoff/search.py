@@ -1,0 +1,256 @@
+"""The adaptive search of ``prtbench advise`` over one :class:`~.search_space.SearchSpace`.
+
+Within a method, candidates are ordered by their main knobs (more bands, texels, probes:
+more accurate *and* more expensive), so one measurement decides others: a candidate that
+misses an accuracy bound implies every candidate below it misses it too, one that breaks a
+cost ceiling implies every candidate above it does, one that meets everything makes every
+candidate above it pointless (it costs more), and so does one that already costs more than
+the cheapest feasible candidate of any method. Each round evaluates, per method, the
+undecided candidate in the middle of what is left (a binary search along one knob). A search
+that refines a screening result starts at the screening optimum and stays in a region around
+it, widened only while the region may hide a cheaper feasible candidate (:class:`Region`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .expressions import Constraint, row_value
+from .search_space import Candidate, SearchSpace
+
+
+@dataclass
+class CellResult:
+    """What one evaluated cell returned: its result rows (one per view) or an error."""
+
+    rows: list[dict[str, Any]]
+    error: str = ""
+
+
+@dataclass
+class Evaluation:
+    """One candidate measured at one profile, judged against the target and budget.
+
+    Attributes
+    ----------
+    candidate : Candidate
+    profile : str
+    row : dict or None
+        The cell's rows aggregated (metrics and frame time averaged over views).
+    error : str
+        Why the cell has no usable row ('' when it has one).
+    cost : float
+        The ``cost_kind`` value (inf when unmeasured).
+    failed : tuple of Constraint
+        The constraints it misses.
+    shortfall : float
+        Sum of the missed constraints' relative shortfalls (inf if a value is missing).
+    values : dict of str to float or None
+        The measured value of each constrained quantity (metric key or cost kind).
+    """
+
+    candidate: Candidate
+    profile: str
+    row: dict[str, Any] | None
+    error: str
+    cost: float
+    failed: tuple[Constraint, ...]
+    shortfall: float
+    values: dict[str, float | None] = field(default_factory=dict)
+
+    @property
+    def feasible(self) -> bool:
+        return self.row is not None and not self.failed
+
+    def key(self) -> tuple:
+        """Sort key: feasible by cost, then the rest by shortfall, then cost."""
+        return (0, self.cost, 0.0) if self.feasible else (1, self.shortfall, self.cost)
+
+
+def as_dict(row: Any) -> dict[str, Any]:
+    return dataclasses.asdict(row) if dataclasses.is_dataclass(row) else dict(row)
+
+
+def normalise(result: Any) -> CellResult:
+    """A CellResult from what an ``evaluate`` returned for one cell: a CellResult, a
+    sweep CellOutcome (``rows``, ``status``, ``error``) or a plain list of rows."""
+    if isinstance(result, CellResult):
+        return result
+    if hasattr(result, "rows"):
+        rows = [as_dict(r) for r in (result.rows or [])]
+        status = getattr(result, "status", "done")
+        error = "" if rows and status != "failed" else (getattr(result, "error", "") or status)
+        return CellResult(rows if not error else [], error)
+    return CellResult([as_dict(r) for r in (result or [])], "" if result else "no rows")
+
+
+def aggregate(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """One row for a cell: metrics, frame time and pixel counts averaged over its views,
+    memory and precompute their maximum, anything else from the first view."""
+    first = dict(rows[0])
+    metrics = {}
+    for key in first.get("metrics") or {}:
+        values = [float(v) for r in rows if (v := (r.get("metrics") or {}).get(key)) is not None]
+        metrics[key] = float(np.mean(values)) if values else None
+    first["metrics"] = metrics
+    for key in ("frame_ms", "frame_ms_p95", "covered_pixels"):
+        values = [float(r[key]) for r in rows if r.get(key) is not None]
+        first[key] = float(np.mean(values)) if values else None
+    for key in ("memory_bytes", "precompute_s"):  # max keeps bytes an int
+        values = [r[key] for r in rows if r.get(key) is not None]
+        first[key] = max(values) if values else None
+    bad = [r for r in rows if r.get("status", "ok") != "ok"]
+    if bad:
+        first["status"], first["status_reason"] = bad[0].get("status"), bad[0].get("status_reason", "")
+    return first
+
+
+class Judge:
+    """Turns a cell's result into an :class:`Evaluation` against target and budget."""
+
+    def __init__(self, constraints: Sequence[Constraint], cost_kind: str, cost_fn):
+        self.constraints, self.cost_kind, self.cost_fn = list(constraints), cost_kind, cost_fn
+
+    def __call__(self, candidate: Candidate, profile: str, result: CellResult) -> Evaluation:
+        if not result.rows:
+            return Evaluation(candidate, profile, None, result.error or "no rows", math.inf,
+                              tuple(self.constraints), math.inf)
+        row = aggregate(result.rows)
+        cost = row_value(row, Constraint(self.cost_kind, "<=", 0, "", "cost"), self.cost_fn)
+        cost = math.inf if cost is None or not math.isfinite(cost) else cost
+        values = {c: row_value(row, c, self.cost_fn) for c in self.constraints}
+        failed = tuple(c for c in self.constraints if not c.holds(values[c]))
+        shortfall = sum(c.shortfall(values[c]) for c in failed)
+        named = {c.name: v for c, v in values.items()}
+        if row.get("status", "ok") != "ok":  # degenerate: its numbers are not measurements
+            return Evaluation(candidate, profile, row, f"{row['status']}: "
+                              f"{row.get('status_reason', '')}", cost,
+                              failed or tuple(self.constraints), math.inf, named)
+        return Evaluation(candidate, profile, row, "", cost, failed, shortfall, named)
+
+
+def _decided(c: Candidate, done: Mapping[Candidate, Evaluation], incumbent: float) -> bool:
+    """Whether the measured candidates already decide ``c`` (see the module docstring).
+
+    ``incumbent`` is the cost of the cheapest feasible candidate found so far, any method:
+    a candidate above one that already costs as much cannot beat it.
+    """
+    for d, e in done.items():
+        if e.row is None or e.error:  # a failed or degenerate cell implies nothing
+            continue
+        if c.below(d) and any(k.grows_with_model is True for k in e.failed):
+            return True  # models less than one that already misses an accuracy bound
+        if d.below(c) and (e.feasible or e.cost >= incumbent
+                           or any(k.grows_with_model is False for k in e.failed)):
+            return True  # models more than one that meets all, costs too much, or breaks a cost
+    return False
+
+
+def _next(space_candidates: Sequence[Candidate], done: Mapping[Candidate, Evaluation],
+          start: Candidate | None, incumbent: float = math.inf) -> Candidate | None:
+    """The next candidate of one method: ``start`` first, then the middle of the undecided."""
+    undecided = [c for c in space_candidates if c not in done and not _decided(c, done, incumbent)]
+    if not undecided:
+        return None
+    if start in undecided:
+        return start
+    undecided.sort(key=lambda c: (sum(c.ranks), c.ranks))
+    return undecided[len(undecided) // 2]  # the upper middle: an unreachable top ends it at once
+
+
+class Region:
+    """The candidates one method's search may visit: all of them, or (refining a screening
+    result) those within ``radius`` ladder steps of ``start``, widened while the best found
+    sits on the region's lower edge or nothing in it is feasible."""
+
+    def __init__(self, candidates: Sequence[Candidate], start: Candidate | None):
+        self.all, self.start = list(candidates), start
+        self.radius = 1 if start is not None and start in self.all else None
+
+    def _distance(self, c: Candidate) -> int:
+        steps = [abs(a - b) for a, b in zip(c.ranks, self.start.ranks)]
+        return max(steps, default=0) + (c.unordered != self.start.unordered)
+
+    def candidates(self) -> list[Candidate]:
+        if self.radius is None:
+            return self.all
+        return [c for c in self.all if self._distance(c) <= self.radius]
+
+    def widen(self, done: Mapping[Candidate, Evaluation]) -> bool:
+        """Widen by one step if the region may hide a cheaper feasible candidate: nothing in
+        it is feasible, or a candidate on its lower edge meets the accuracy bounds (one below
+        it might too, for less)."""
+        if self.radius is None or len(self.candidates()) == len(self.all):
+            return False
+        if not any(e.feasible for e in done.values()):
+            self.radius += 1
+            return True
+        for c, e in done.items():
+            on_edge = any(r == s - self.radius and r > 0 for r, s in zip(c.ranks, self.start.ranks))
+            accurate = e.row is not None and not e.error and not any(
+                k.grows_with_model is True for k in e.failed)
+            if on_edge and accurate and self._distance(c) <= self.radius:
+                self.radius += 1
+                return True
+        return False
+
+
+def search(space: SearchSpace, methods: Sequence[str], *, profile: str, run_batch, judge: Judge,
+           starts: Mapping[str, Candidate] | None = None, echo: bool = False) -> list[Evaluation]:
+    """Search the candidates of ``methods`` at one profile; returns every evaluation made.
+
+    Each round evaluates one candidate per still-undecided method, as one batch (so a
+    parallel ``evaluate`` runs methods side by side). A method with a start (its screening
+    optimum) is searched in a region around it (:class:`Region`).
+    """
+    starts = dict(starts or {})
+    done: dict[str, dict[Candidate, Evaluation]] = {m: {} for m in methods}
+    regions = {m: Region(space.space_of(m).candidates, starts.get(m)) for m in methods}
+    history: list[Evaluation] = []
+    while True:
+        incumbent = min((e.cost for e in history if e.feasible), default=math.inf)
+        batch = []
+        for m in methods:
+            while (c := _next(regions[m].candidates(), done[m], starts.get(m), incumbent)) is None:
+                if not regions[m].widen(done[m]):
+                    break
+            if c is not None:
+                batch.append(c)
+        if not batch:
+            return history
+        for candidate, result in zip(batch, run_batch(batch, profile)):
+            e = judge(candidate, profile, result)
+            done[candidate.method][candidate] = e
+            history.append(e)
+            if echo:
+                print(f"[advise] {profile}: {candidate.method} {candidate.label()}: "
+                      f"{brief(e, judge)}", file=sys.stderr, flush=True)
+
+
+def brief(e: Evaluation, judge: Judge) -> str:
+    if e.row is None:
+        return f"failed ({e.error})"
+    parts = [f"{c.name}={fmt(e.values.get(c.name))}" for c in judge.constraints]
+    return (", ".join(parts) + f", {judge.cost_kind}={fmt(e.cost)} "
+            + ("meets all" if e.feasible else f"misses {', '.join(c.text for c in e.failed)}"))
+
+
+def fmt(x: Any) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.4g}" if isinstance(x, float) else str(x)
+
+
+def best_per_method(history: Sequence[Evaluation]) -> dict[str, Evaluation]:
+    best: dict[str, Evaluation] = {}
+    for e in history:
+        if e.candidate.method not in best or e.key() < best[e.candidate.method].key():
+            best[e.candidate.method] = e
+    return best
