@@ -118,6 +118,26 @@ def test_blas_is_single_threaded_meanwhile_and_restored():
     assert get() == before
 
 
+def test_freed_chunk_arrays_are_reused_without_page_faults():
+    import resource
+
+    if not parallel.keep_freed_memory():
+        pytest.skip("not glibc: the allocator keeps its own policy")
+
+    def chunk() -> float:
+        arrays = [np.ones(3 << 17) for _ in range(4)]  # four 3 MiB arrays, like a chunk's rays
+        return sum(float(a[-1]) for a in arrays)
+
+    chunk()  # the heap grows once
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(20):
+        chunk()
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    # glibc's own policy trims the freed 12 MiB off the heap every time: measured 60819 faults
+    # (~3000 per chunk) in a fresh process here, 0 with keep_freed_memory().
+    assert faults < 20 * 300, faults
+
+
 # --- bit-identical results ----------------------------------------------------------------------
 
 def test_tracer_queries_are_identical_and_split_across_threads(monkeypatch, scene):
