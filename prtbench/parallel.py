@@ -142,7 +142,7 @@ def single_threaded_blas() -> Iterator[None]:
 
 @contextmanager
 def _short_switch_interval() -> Iterator[None]:
-    """Python's GIL switch interval at :data:`POOL_SWITCH_INTERVAL` meanwhile (counted, restored)."""
+    """GIL switch interval at :data:`POOL_SWITCH_INTERVAL` meanwhile (counted, restored)."""
     global _switch_users, _switch_previous
     with _settings_lock:
         if _switch_users == 0:

@@ -3,8 +3,8 @@
 All precompute ray casting goes through :class:`Tracer` (DESIGN.md §8): rays are float32, sent
 in bounded chunks, and a scene is built once. Large batches are split across the precompute
 threads (``PRTBENCH_THREADS``, :mod:`prtbench.parallel`; embree releases the GIL); inside a
-worker thread of a chunked precompute loop, queries stay on that thread. Visibility is geometric: a triangle blocks light
-from either side, even though surfaces are shaded one-sided.
+worker thread of a chunked precompute loop, queries stay on that thread. Visibility is
+geometric: a triangle blocks light from either side, even though surfaces are shaded one-sided.
 
 Self-intersection: a ray leaving a surface point in float32 can hit the very triangle it starts
 on (its origin is only within ~1e-7 relative of the plane). :func:`offset_origins` moves
