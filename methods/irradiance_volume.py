@@ -146,6 +146,7 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     """
     from tqdm import tqdm
 
+    from prtbench.parallel import map_chunks, parallel_chunks
     from prtbench.transfer import ShRotation
 
     p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
@@ -160,17 +161,24 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     visibility = np.zeros((len(p), bands * bands))
     backface = np.zeros(len(p))
     step = max(1, _RAYS_PER_CHUNK // m)
+
+    def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray]:
+        """(visibility SH, back-face fraction) of the probes in ``sl``."""
+        dirs = np.einsum("pij,mj->pmi", world_from_local[sl], local).reshape(-1, 3)
+        hits = tracer.first_hit(np.repeat(p[sl], m, axis=0), dirs)
+        hit = hits.face >= 0
+        back = np.zeros_like(hit)
+        back[hit] = np.einsum("hj,hj->h", dirs[hit], face_normal[hits.face[hit]]) > 0
+        visible = (~hit).reshape(-1, m).astype(np.float64)
+        return rotate(visible @ y_local, world_from_local[sl]), back.reshape(-1, m).mean(axis=1)
+
+    # Probe chunks on the precompute threads (prtbench.parallel); the rotations are drawn for
+    # all probes up front, so every thread count gives the same bits.
+    chunks = parallel_chunks(len(p), step)
     with tqdm(total=len(p), desc="irradiance-volume probes", unit="probe", disable=not progress) as bar:
-        for start in range(0, len(p), step):
-            sl = slice(start, min(start + step, len(p)))
-            dirs = np.einsum("pij,mj->pmi", world_from_local[sl], local).reshape(-1, 3)
-            hits = tracer.first_hit(np.repeat(p[sl], m, axis=0), dirs)
-            hit = hits.face >= 0
-            back = np.zeros_like(hit)
-            back[hit] = np.einsum("hj,hj->h", dirs[hit], face_normal[hits.face[hit]]) > 0
-            visible = (~hit).reshape(-1, m).astype(np.float64)
-            visibility[sl] = rotate(visible @ y_local, world_from_local[sl])
-            backface[sl] = back.reshape(-1, m).mean(axis=1)
+        for (vis, back), sl in zip(map_chunks(chunk, chunks), chunks):
+            visibility[sl] = vis
+            backface[sl] = back
             bar.update(sl.stop - sl.start)
     return visibility, backface
 

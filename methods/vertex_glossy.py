@@ -130,6 +130,7 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
     """
     from prtbench.raytrace import Tracer, offset_origins
     from prtbench.sh import eval_sh
+    from prtbench.parallel import map_chunks
     from prtbench.transfer import (RayPattern, _check_inputs, _chunks, _progress,
                                    _single_threaded_blas)
 
@@ -141,18 +142,23 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
     out = np.zeros((len(p), n2, n2), dtype=np.float32)
     chunk_points = max(1, _MATRIX_SCRATCH_BYTES // (8 * m * n2))
     # Small products: OpenBLAS's helper threads only contend with each other (20× slower).
+    def chunk(sl: slice) -> np.ndarray:
+        frames = pattern.frames(n[sl], sl)
+        dirs = pattern.world_directions(frames, sl)  # (c, M, 3) float32
+        origins = np.repeat(origins_all[sl], m, axis=0)
+        visible = ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
+        y = eval_sh(dirs.reshape(-1, 3).astype(np.float64), bands).reshape(-1, m, n2)
+        weighted = y * (visible[..., None] * (np.pi / m))
+        # One (n² × M)·(M × n²) BLAS product per point.
+        return np.stack([w.T @ yp for w, yp in zip(weighted, y)]).astype(np.float32)
+
+    # Chunks on the precompute threads (prtbench.parallel.map_chunks): fixed boundaries and
+    # per-point rays, so every thread count gives the same bits.
+    chunks = _chunks(len(p), m, chunk_points)
     with _progress(len(p), f"transfer matrices {scene.name}", progress) as bar, \
             _single_threaded_blas():
-        for sl in _chunks(len(p), m, chunk_points):
-            frames = pattern.frames(n[sl], sl)
-            dirs = pattern.world_directions(frames, sl)  # (c, M, 3) float32
-            origins = np.repeat(origins_all[sl], m, axis=0)
-            visible = ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
-            y = eval_sh(dirs.reshape(-1, 3).astype(np.float64), bands).reshape(-1, m, n2)
-            weighted = y * (visible[..., None] * (np.pi / m))
-            # One (n² × M)·(M × n²) BLAS product per point.
-            for row, (w, yp) in enumerate(zip(weighted, y)):
-                out[sl.start + row] = w.T @ yp
+        for values, sl in zip(map_chunks(chunk, chunks), chunks):
+            out[sl] = values
             bar.update(sl.stop - sl.start)
     return out
 

@@ -1,8 +1,10 @@
 """Batched ray queries against a triangle scene (embreex / Embree 4).
 
 All precompute ray casting goes through :class:`Tracer` (DESIGN.md §8): rays are float32, sent
-in bounded chunks, and a scene is built once. Visibility is geometric: a triangle blocks light
-from either side, even though surfaces are shaded one-sided.
+in bounded chunks, and a scene is built once. Large batches are split across the precompute
+threads (``PRTBENCH_THREADS``, :mod:`prtbench.parallel`; embree releases the GIL); inside a
+worker thread of a chunked precompute loop, queries stay on that thread. Visibility is
+geometric: a triangle blocks light from either side, even though surfaces are shaded one-sided.
 
 Self-intersection: a ray leaving a surface point in float32 can hit the very triangle it starts
 on (its origin is only within ~1e-7 relative of the plane). :func:`offset_origins` moves
@@ -20,12 +22,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import InvalidInputError
+from .parallel import in_worker, map_chunks, parallel_chunks, thread_count
 
 if TYPE_CHECKING:
     from .scene import Scene
 
 #: Rays per embree call: bounds the temporary float32 arrays (~40 bytes/ray) to ~80 MB.
 CHUNK_RAYS = 1 << 21
+
+#: Batches of at least this many rays are split across the precompute threads
+#: (:mod:`prtbench.parallel`); smaller ones are not worth a pool.
+PARALLEL_RAYS = 1 << 15
 
 #: Origin offset along the normal, as a fraction of the scene's bounding-box diagonal.
 OFFSET_SCALE = 1e-4
@@ -92,6 +99,19 @@ def _as_rays(origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, n
     return o, d
 
 
+def _ray_chunks(n: int) -> tuple[list[slice], int]:
+    """(slices, threads) for a batch of ``n`` rays: one slice per embree call.
+
+    Large batches get several slices per thread (rays of unequal cost stay balanced). Rays are
+    independent, so the split, which depends on the thread count, cannot change any result.
+    """
+    threads = thread_count()  # read (and checked) on every query, like every other user
+    if in_worker() or n < PARALLEL_RAYS or threads == 1:
+        return parallel_chunks(n, CHUNK_RAYS), 1
+    per_chunk = min(CHUNK_RAYS, max(PARALLEL_RAYS // 2, -(-n // (4 * threads))))
+    return parallel_chunks(n, per_chunk), threads
+
+
 class Tracer:
     """An Embree scene over one triangle mesh, answering batched occlusion and first-hit queries.
 
@@ -153,6 +173,10 @@ class Tracer:
             self._vertices = np.ascontiguousarray(np.nan_to_num(self.positions), dtype=np.float32)
             self._indices = np.ascontiguousarray(self.faces[self.face_of_prim], dtype=np.int32)
             self._mesh = EmbreeMesh(self._scene, self._vertices, self._indices)
+            # embreex builds the BVH on the first query, unguarded: build it now, before any
+            # thread can race another into building it twice.
+            self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32),
+                            query="OCCLUDED")
         self._empty = len(self.face_of_prim) == 0
 
     @classmethod
@@ -188,16 +212,19 @@ class Tracer:
             tfar = np.asarray(tfar, dtype=np.float64).reshape(-1)
             if len(tfar) != n:
                 raise InvalidInputError(f"tfar has {len(tfar)} values for {n} rays")
-        for start in range(0, n, CHUNK_RAYS):
-            stop = min(start + CHUNK_RAYS, n)
-            oc = np.ascontiguousarray(o[start:stop], dtype=np.float32)
-            dc = np.ascontiguousarray(d[start:stop], dtype=np.float32)
-            if per_ray:
-                # embreex may write into a tfar array it is given: always pass a fresh copy.
-                dist = np.minimum(tfar[start:stop], np.finfo(np.float32).max).astype(np.float32)
-            else:
-                dist = float(min(float(tfar), np.finfo(np.float32).max))
-            out[start:stop] = self._scene.run(oc, dc, dists=dist, query="OCCLUDED") != -1
+        fmax = np.finfo(np.float32).max
+        scalar_far = None if per_ray else float(min(float(tfar), fmax))
+
+        def trace(sl: slice) -> None:
+            oc = np.ascontiguousarray(o[sl], dtype=np.float32)
+            dc = np.ascontiguousarray(d[sl], dtype=np.float32)
+            # embreex may write into a tfar array it is given: always pass a fresh copy.
+            dist = (np.minimum(tfar[sl], fmax).astype(np.float32) if per_ray else scalar_far)
+            out[sl] = self._scene.run(oc, dc, dists=dist, query="OCCLUDED") != -1
+
+        chunks, threads = _ray_chunks(n)
+        for _ in map_chunks(trace, chunks, threads=threads):
+            pass
         return out
 
     def first_hit(self, origins: np.ndarray, directions: np.ndarray) -> Hits:
@@ -219,15 +246,19 @@ class Tracer:
         v = np.zeros(n, dtype=np.float32)
         if self._empty or n == 0:
             return Hits(t, face, u, v)
-        for start in range(0, n, CHUNK_RAYS):
-            stop = min(start + CHUNK_RAYS, n)
-            oc = np.ascontiguousarray(o[start:stop], dtype=np.float32)
-            dc = np.ascontiguousarray(d[start:stop], dtype=np.float32)
+
+        def trace(sl: slice) -> None:
+            oc = np.ascontiguousarray(o[sl], dtype=np.float32)
+            dc = np.ascontiguousarray(d[sl], dtype=np.float32)
             res = self._scene.run(oc, dc, output=1)
             prim = res["primID"]
             hit = prim >= 0
-            face[start:stop][hit] = self.face_of_prim[prim[hit]]
-            t[start:stop][hit] = res["tfar"][hit]
-            u[start:stop][hit] = res["u"][hit]
-            v[start:stop][hit] = res["v"][hit]
+            face[sl][hit] = self.face_of_prim[prim[hit]]
+            t[sl][hit] = res["tfar"][hit]
+            u[sl][hit] = res["u"][hit]
+            v[sl][hit] = res["v"][hit]
+
+        chunks, threads = _ray_chunks(n)
+        for _ in map_chunks(trace, chunks, threads=threads):
+            pass
         return Hits(t, face, u, v)

@@ -16,9 +16,11 @@ never evaluated per ray. A point's M directions are a fixed local pattern rotate
 R_p, so the visibility-weighted sum is formed in the local frame by one matrix product against
 SH values evaluated once per pattern, c_p = π/M · Y_localᵀ v_p, and then rotated to the world
 frame, T_p = D(R_p) c_p, with D built from ZYZ Euler angles (:class:`ShRotation`: O(n³) per
-point, no trigonometry per ray). Embree releases the GIL, so the next chunk is traced on a
-worker thread while this chunk's SH work runs. :func:`compute_transfer_with_stderr` evaluates SH
-per ray instead (it needs every sample's square); both give the same transfer up to rounding.
+point, no trigonometry per ray). Chunks of points (rays, trace, SH sums) run on the precompute
+threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``, default all cores): embree releases
+the GIL, and since a chunk's rays depend only on its points, every thread count gives the same
+bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every sample's
+square); both give the same transfer up to rounding.
 
 Interreflected transfer (Sloan's bounces) is in :func:`compute_bounce_transfer`.
 """
@@ -27,17 +29,17 @@ from __future__ import annotations
 
 import math
 import sys
-from collections import deque
-from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
-from functools import lru_cache
+import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .cache import cached_arrays, content_key
 from .errors import InvalidInputError
+from .parallel import Scratch, map_chunks, repeat_rows
+from .parallel import _openblas_threads  # noqa: F401  (re-exported for users)
+from .parallel import single_threaded_blas as _single_threaded_blas
 from .raytrace import Tracer, offset_origins
 from .sh import eval_sh, sphere_quadrature
 
@@ -47,8 +49,8 @@ if TYPE_CHECKING:
 #: Bump when the estimator changes: it is part of every transfer cache key.
 TRANSFER_VERSION = 1
 
-#: Rays per embree call: bounds memory (~60 bytes per ray in flight, two chunks at a time) and
-#: keeps chunks small enough for tracing and SH work to overlap.
+#: Rays per chunk: bounds memory (~60 bytes per ray, two chunks per thread in flight) and keeps
+#: chunks small enough to balance the threads. Fixed, so results never depend on threads.
 MAX_RAYS_PER_CHUNK = 1 << 18
 
 #: Distinct randomly shifted direction patterns (SH tables are evaluated once per pattern).
@@ -122,9 +124,14 @@ class RayPattern:
         for k in range(min(self.n_patterns, sl.stop - sl.start)):
             yield (sl.start + k) % self.n_patterns, slice(k, None, self.n_patterns)
 
-    def world_directions(self, frames: np.ndarray, sl: slice) -> np.ndarray:
-        """(n, M, 3) float32 world directions of the points in ``sl`` with ``frames`` (n, 3, 3)."""
-        out = np.empty((len(frames), self.rays_per_point, 3), dtype=np.float32)
+    def world_directions(self, frames: np.ndarray, sl: slice, *,
+                         out: np.ndarray | None = None) -> np.ndarray:
+        """(n, M, 3) float32 world directions of the points in ``sl`` with ``frames`` (n, 3, 3).
+
+        ``out``, if given, is a C-contiguous (n, M, 3) float32 array to write them into.
+        """
+        if out is None:
+            out = np.empty((len(frames), self.rays_per_point, 3), dtype=np.float32)
         f32 = frames.astype(np.float32)
         for k, rows in self.groups(sl):
             np.matmul(self.local[k].astype(np.float32)[None], f32[rows], out=out[rows])
@@ -162,48 +169,6 @@ def _chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> lis
     return [slice(s, min(s + step, n_points)) for s in range(0, n_points, step)]
 
 
-@lru_cache(maxsize=1)
-def _openblas_threads() -> tuple[Callable[[], int], Callable[[int], None]] | None:
-    """(get, set) of the thread count of numpy's bundled OpenBLAS, or None if not found."""
-    import ctypes
-    import glob
-    import os
-
-    libs = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
-    for path in glob.glob(os.path.join(libs, "libscipy_openblas*.so*")):
-        try:
-            lib = ctypes.CDLL(path)  # the copy numpy already loaded: dlopen shares it
-        except OSError:
-            continue
-        for suffix in ("64_", "", "_64_"):
-            get = getattr(lib, f"scipy_openblas_get_num_threads{suffix}", None)
-            put = getattr(lib, f"scipy_openblas_set_num_threads{suffix}", None)
-            if get is not None and put is not None:
-                get.restype, put.argtypes = ctypes.c_int, [ctypes.c_int]
-                return get, put
-    return None
-
-
-@contextmanager
-def _single_threaded_blas() -> Iterator[None]:
-    """Run numpy's BLAS on one thread meanwhile (a no-op where it is not OpenBLAS).
-
-    The tracer thread occupies one core; OpenBLAS's helper threads would compete with it for
-    the SH products (which are small) and keep spinning after them, costing ~20 % throughput.
-    """
-    threads = _openblas_threads()
-    if threads is None:
-        yield
-        return
-    get, put = threads
-    previous = get()
-    put(1)
-    try:
-        yield
-    finally:
-        put(previous)
-
-
 def _progress(total: int, desc: str, enabled: bool):
     from tqdm import tqdm
 
@@ -235,22 +200,23 @@ class ShRotation:
         d_minus = y.T @ eval_sh(dirs @ _rotation_x(-90.0), bands)
         self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
         self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
-        # (l, m) of every m > 0 coefficient; its partner -m holds the sin(mφ) part.
-        ls = np.array([l for l in range(bands) for _ in range(l)], dtype=int)
-        ms = np.array([m for l in range(bands) for m in range(1, l + 1)], dtype=int)
-        self._pos = (ls * (ls + 1) + ms).astype(int)
-        self._neg = (ls * (ls + 1) - ms).astype(int)
-        self._m_index = ms.astype(int) - 1
 
     def _z(self, c: np.ndarray, angle: np.ndarray) -> None:
         if self.bands < 2:
             return
         # e^{imγ} for m = 1 … n−1 by repeated products: two trig calls per point, not n².
         powers = np.cumprod(np.repeat(np.exp(1j * angle)[:, None], self.bands - 1, axis=1), axis=1)
-        cos, sin = powers.real[:, self._m_index], powers.imag[:, self._m_index]
-        pos, neg = c[:, self._pos], c[:, self._neg]
-        c[:, self._pos] = pos * cos - neg * sin
-        c[:, self._neg] = pos * sin + neg * cos
+        cos, sin = powers.real, powers.imag
+        for l in range(1, self.bands):
+            # Band l's m = 1 … l are columns l²+l+1 … l²+2l and their partners −m run from
+            # l²+l−1 down to l²: slices, not gathers (per-point cost of the rotation).
+            centre = l * l + l
+            pos = c[:, centre + 1:centre + l + 1]
+            neg = c[:, centre - 1:(centre - l - 1 if centre - l - 1 >= 0 else None):-1]
+            cl, sl = cos[:, :l], sin[:, :l]
+            new_pos = pos * cl - neg * sl
+            neg[...] = pos * sl + neg * cl
+            pos[...] = new_pos
 
     def _x(self, c: np.ndarray, blocks: list[np.ndarray]) -> None:
         for l, block in enumerate(blocks):
@@ -287,64 +253,65 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     stderr = np.zeros((len(points), n2), dtype=np.float64) if with_stderr else None
     if not chunks:
         return transfer, stderr
+    tables: list = []
+    tables_lock = threading.Lock()
 
-    def generate(sl: slice) -> tuple[slice, np.ndarray, np.ndarray, np.ndarray]:
+    def sh_tables() -> tuple[ShRotation, list[np.ndarray]]:
+        """(rotation, SH of each local pattern), built by the first chunk done tracing: the
+        other threads' tracing hides the cost."""
+        with tables_lock:
+            if not tables:
+                # One evaluation for all patterns (eval_sh is per direction: same values).
+                local = pattern.local
+                y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
+                tables.extend([ShRotation(bands), list(y)])
+        return tables[0], tables[1]
+
+    scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
+
+    def visibility(sl: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = sl.stop - sl.start
         frames = pattern.frames(normals[sl], sl)
-        dirs = pattern.world_directions(frames, sl)
-        return sl, frames, dirs, np.repeat(origins_all[sl], m, axis=0)
+        dirs = pattern.world_directions(frames, sl,
+                                        out=scratch.get("dirs", (n, m, 3), np.float32))
+        origins = repeat_rows(origins_all[sl], m, out=scratch.get("origins", (n * m, 3),
+                                                                  np.float32))
+        return frames, dirs, ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
 
-    def trace(rays) -> np.ndarray:
-        sl, _, dirs, origins = rays
-        return ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
-
-    def accumulate(rays, visible: np.ndarray) -> None:
-        sl, frames, dirs, _ = rays
-        if stderr is not None:  # per-ray SH: the second moment needs every sample
+    def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray | None]:
+        """(transfer, stderr or None) of the points in ``sl``: rays, trace and SH sums."""
+        frames, dirs, visible = visibility(sl)
+        if with_stderr:  # per-ray SH: the second moment needs every sample
+            mean = np.empty((len(visible), n2))
+            error = np.empty((len(visible), n2))
             step = max(1, _SCRATCH_BYTES // (8 * m * n2))
             for s in range(0, len(visible), step):
                 y = eval_sh(dirs[s:s + step].reshape(-1, 3).astype(np.float64), bands)
                 y = y.reshape(-1, m, n2)
                 v = visible[s:s + step].astype(np.float64)
-                mean = np.einsum("pm,pmi->pi", v, y) * (np.pi / m)
+                mu = np.einsum("pm,pmi->pi", v, y) * (np.pi / m)
                 second = np.einsum("pm,pmi->pi", v, y * y) * (np.pi**2 / m)
-                var = np.maximum(second - mean**2, 0.0) * (m / (m - 1)) if m > 1 else np.inf
-                rows = slice(sl.start + s, sl.start + s + len(v))
-                transfer[rows] = mean
-                stderr[rows] = np.sqrt(var / m)
-            return
+                var = np.maximum(second - mu**2, 0.0) * (m / (m - 1)) if m > 1 else np.inf
+                mean[s:s + len(v)] = mu
+                error[s:s + len(v)] = np.sqrt(var / m)
+            return mean, error
+        rotate, local_sh = sh_tables()
         local = np.empty((len(visible), n2))
         for k, rows in pattern.groups(sl):
-            local[rows] = visible[rows].astype(np.float64) @ local_sh[k]
+            v = visible[rows]
+            weights = scratch.get("weights", v.shape, np.float64)
+            np.copyto(weights, v)
+            local[rows] = weights @ local_sh[k]
         # frames hold rows (t1, t2, n): the local -> world rotation is their transpose.
-        transfer[sl] = rotate(local * (np.pi / m), frames.transpose(0, 2, 1))
+        return rotate(local * (np.pi / m), frames.transpose(0, 2, 1)), None
 
-    # The worker only runs embree (which releases the GIL) and always has the next chunk queued,
-    # while this thread generates rays ahead and reduces finished chunks: the tracer never waits.
-    queued: deque = deque()
-    upcoming = iter(chunks)
-
-    def enqueue(pool: ThreadPoolExecutor) -> None:
-        sl = next(upcoming, None)
-        if sl is not None:
-            rays = generate(sl)
-            queued.append((rays, pool.submit(trace, rays)))
-
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        try:
-            enqueue(pool)
-            rotate = ShRotation(bands)
-            local_sh = None if with_stderr else [eval_sh(d, bands) for d in pattern.local]
-            enqueue(pool)
-            while queued:
-                rays, future = queued.popleft()
-                visible = future.result()
-                enqueue(pool)
-                accumulate(rays, visible)
-                bar.update(rays[0].stop - rays[0].start)
-        except BaseException:
-            for _, future in queued:
-                future.cancel()
-            raise
+    # Chunks run on the precompute threads (embree and numpy's large operations release the
+    # GIL); each chunk's rays depend only on its points, so any thread count gives these bits.
+    for (t, e), sl in zip(map_chunks(chunk, chunks), chunks):  # the pool first: it ends first
+        transfer[sl] = t
+        if stderr is not None:
+            stderr[sl] = e
+        bar.update(sl.stop - sl.start)
     return transfer, stderr
 
 
@@ -490,7 +457,8 @@ def _gather_matrices(tracer: Tracer, albedo: _Albedo, points: np.ndarray, normal
     n_vertices = len(tracer.positions)
     corners = tracer.positions.astype(np.float64)[tracer.faces]
     face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    for sl in chunks:
+
+    def chunk(sl: slice) -> list:
         frames = pattern.frames(normals[sl], sl)
         dirs = pattern.world_directions(frames, sl).reshape(-1, 3)
         hits = tracer.first_hit(np.repeat(origins_all[sl], m, axis=0), dirs)
@@ -512,8 +480,12 @@ def _gather_matrices(tracer: Tracer, albedo: _Albedo, points: np.ndarray, normal
         per_row = np.bincount(ray // m, minlength=n_rows) * 3
         indptr = np.concatenate([[0], np.cumsum(per_row)]).astype(np.int64)
         indices = verts.reshape(-1).astype(np.int32)
-        yield sl, [csr_matrix((np.ascontiguousarray(weight[:, :, c]).reshape(-1), indices, indptr),
-                              shape=(n_rows, n_vertices)) for c in range(3)]
+        return [csr_matrix((np.ascontiguousarray(weight[:, :, c]).reshape(-1), indices, indptr),
+                           shape=(n_rows, n_vertices)) for c in range(3)]
+
+    # Chunks are built on the precompute threads and come back in chunk order.
+    for mats, sl in zip(map_chunks(chunk, chunks), chunks):  # the pool first: it ends first
+        yield sl, mats
 
 
 class _Gather:

@@ -143,15 +143,21 @@ def bake_lightmaps(scene: Any, lightmap: Lightmap, lights: list, *, bounces: int
     tracer = Tracer.from_scene(scene)
     albedo = object_albedo(scene, tracer)
     out = np.zeros((len(lights), len(lightmap), 3), np.float32)
-    iterator: Any = range(len(lights))
-    if progress:
-        from tqdm import tqdm
+    from tqdm import tqdm
 
-        iterator = tqdm(iterator, desc=f"ddprt bake {scene.name}", unit="light", leave=False)
-    for k in iterator:
-        out[k] = bake_indirect(tracer, albedo, lightmap.points, lightmap.normals, lightmap.albedo,
-                               lights[k], bounces=bounces, paths=paths, env_samples=env_samples,
-                               seed=seed * 100_003 + k)
+    from prtbench.parallel import map_chunks
+
+    def bake(k: int) -> np.ndarray:
+        return bake_indirect(tracer, albedo, lightmap.points, lightmap.normals, lightmap.albedo,
+                             lights[k], bounces=bounces, paths=paths, env_samples=env_samples,
+                             seed=seed * 100_003 + k)
+
+    # Lights on the precompute threads (each light has its own seed: same bits on any count).
+    with tqdm(total=len(lights), desc=f"ddprt bake {scene.name}", unit="light", leave=False,
+              disable=not progress) as bar:
+        for k, lightmap_k in enumerate(map_chunks(bake, range(len(lights)))):
+            out[k] = lightmap_k
+            bar.update(1)
     return out
 
 

@@ -24,6 +24,7 @@ import sys
 
 import numpy as np
 
+from prtbench.parallel import map_chunks, parallel_chunks
 from prtbench.raytrace import Tracer, offset_origins
 from prtbench.sh import eval_sh, lm_of, phong_zonal, tpfl_matrix
 from prtbench.transfer import RayPattern, ShRotation
@@ -131,9 +132,10 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
         for b in range(1, bounces + 1):
             pattern = RayPattern(len(points), m, seed + b)
             local_sh = [eval_sh(d, bands) for d in pattern.local]
-            gathered = np.zeros((len(points), n2, 3))
-            for start in range(0, len(points), step):
-                sl = slice(start, min(start + step, len(points)))
+
+            def chunk(sl: slice, b=b, pattern=pattern, local_sh=local_sh,
+                      previous=previous) -> np.ndarray:
+                """T_b of the points in ``sl``, (n, n², 3): rays, hits, shading, SH sums."""
                 frames = pattern.frames(normals[sl], sl)
                 dirs = pattern.world_directions(frames, sl).reshape(-1, 3)
                 hits = tracer.first_hit(np.repeat(origins_all[sl], m, axis=0), dirs)
@@ -164,8 +166,17 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
                     block = dense[rows].transpose(0, 2, 1).reshape(-1, m) @ local_sh[k]
                     local[rows] = block.reshape(-1, 3, n2).transpose(0, 2, 1)
                 world_from_local = frames.transpose(0, 2, 1)
+                out = np.empty((len(dense), n2, 3))
                 for c in range(3):
-                    gathered[sl, :, c] = rotate(local[:, :, c] * (math.pi / m), world_from_local)
+                    out[:, :, c] = rotate(local[:, :, c] * (math.pi / m), world_from_local)
+                return out
+
+            gathered = np.zeros((len(points), n2, 3))
+            # Chunks on the precompute threads (prtbench.parallel), reduced in chunk order;
+            # their boundaries depend only on the point count, so results on every thread count.
+            chunks = parallel_chunks(len(points), step)
+            for values, sl in zip(map_chunks(chunk, chunks), chunks):
+                gathered[sl] = values
                 bar.update(sl.stop - sl.start)
             texture = np.zeros((s * r * r, n2 * 3))
             texture[texel_index] = gathered.reshape(len(points), n2 * 3)

@@ -1,0 +1,119 @@
+"""``compute_transfer`` on every core against one raw embreex call on the same rays.
+
+Target (issue #13): with ``PRTBENCH_THREADS`` = cores, ``compute_transfer`` reaches
+>= 0.85 × cores × the rays/s of ONE bare embreex ``OCCLUDED`` call over exactly the rays it
+traces, with results bit-identical to ``PRTBENCH_THREADS=1``. Not collected by the default test
+run (``testpaths = ["tests"]``); run it on a machine as quiet as possible with
+
+    .venv/bin/pytest benchmarks/test_transfer_threads.py --benchmark-enable -s
+
+It prints, per case: raw embree Mrays/s (one call, one thread), the same rays split over
+``cores`` concurrent raw calls (embree's own scaling: the ceiling), ``compute_transfer`` with
+1 and with ``cores`` threads, the ratio to the target and the load average while measuring
+(other processes on a shared machine lower every parallel figure). Calls are interleaved and
+the best of ``ROUNDS`` is kept. It asserts the bit-identity, nothing about timing.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+from prtbench.errors import PrtbenchError
+from prtbench.parallel import available_cores
+from prtbench.raytrace import Tracer, offset_origins
+from prtbench.scene import get_scene
+from prtbench.transfer import RayPattern, compute_transfer
+
+ROUNDS = 7
+
+
+def _scene():
+    try:
+        return get_scene("plants")
+    except (PrtbenchError, ImportError):
+        return get_scene("sphere-over-plane")
+
+
+def _wall(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+@pytest.mark.parametrize(("bands", "rays_per_point", "n_points"),
+                         [(4, 256, 4096), (6, 1024, 1024), (10, 256, 4096)])
+def test_threaded_transfer_vs_one_raw_embree_call(benchmark, monkeypatch, bands, rays_per_point,
+                                                  n_points):
+    scene = _scene()
+    cores = available_cores()
+    positions, normals, _, _ = scene.merged()
+    pick = np.random.default_rng(0).choice(len(positions), size=min(n_points, len(positions)),
+                                           replace=False)
+    points = positions[pick].astype(np.float64)
+    normals = normals[pick].astype(np.float64)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    tracer = Tracer.from_scene(scene)
+    n_rays = len(points) * rays_per_point
+
+    # Exactly the rays compute_transfer traces (same seeded pattern and origin offset).
+    pattern = RayPattern(len(points), rays_per_point, 0)
+    everything = slice(0, len(points))
+    dirs = pattern.world_directions(pattern.frames(normals, everything), everything).reshape(-1, 3)
+    origins = np.repeat(offset_origins(points, normals, diagonal=tracer.diagonal)
+                        .astype(np.float32), rays_per_point, axis=0)
+    halves = np.array_split(np.arange(n_rays), cores)
+    split = [(np.ascontiguousarray(origins[h]), np.ascontiguousarray(dirs[h])) for h in halves]
+
+    def raw():
+        return tracer._scene.run(origins, dirs, query="OCCLUDED")
+
+    def raw_split():
+        with ThreadPoolExecutor(cores) as pool:
+            list(pool.map(lambda od: tracer._scene.run(*od, query="OCCLUDED"), split))
+
+    results = {}
+
+    def transfer(threads: int):
+        def call():
+            monkeypatch.setenv("PRTBENCH_THREADS", str(threads))
+            results[threads] = compute_transfer(
+                scene, points, normals, bands=bands, rays_per_point=rays_per_point,
+                use_cache=False, progress=False, tracer=tracer)
+        return call
+
+    calls = {"raw": raw, "raw_split": raw_split, "one": transfer(1), "all": transfer(cores)}
+    for fn in calls.values():
+        fn()  # warm-up (imports, first-touch of the BVH)
+    load_before = os.getloadavg()
+    times = {name: [] for name in calls}
+    for _ in range(ROUNDS):  # interleaved: every variant sees the same load fluctuations
+        for name, fn in calls.items():
+            times[name].append(_wall(fn))
+    load_after = os.getloadavg()
+    np.testing.assert_array_equal(results[1], results[cores])  # bit-identical to one thread
+
+    best = {name: min(t) for name, t in times.items()}
+    rate = {name: n_rays / t / 1e6 for name, t in best.items()}
+    info = {
+        "scene": scene.name, "triangles": scene.n_triangles, "rays": n_rays, "bands": bands,
+        "rays_per_point": rays_per_point, "cores": cores,
+        "raw_mrays_per_s": rate["raw"], "raw_split_mrays_per_s": rate["raw_split"],
+        "transfer_1_mrays_per_s": rate["one"], "transfer_cores_mrays_per_s": rate["all"],
+        "ratio_1": rate["one"] / rate["raw"], "ratio_cores": rate["all"] / rate["raw"],
+        "embree_scaling": rate["raw_split"] / rate["raw"],
+        "target": 0.85 * cores,
+        "loadavg_1min_before": load_before[0], "loadavg_1min_after": load_after[0],
+    }
+    benchmark.extra_info.update(info)
+    print(f"\n[transfer threads] {scene.name} ({scene.n_triangles} tris) {n_rays} rays, bands "
+          f"{bands}, M {rays_per_point}, {cores} cores: raw embree {rate['raw']:.2f} Mrays/s "
+          f"(split over {cores} threads {rate['raw_split']:.2f}, x{info['embree_scaling']:.2f}); "
+          f"compute_transfer 1 thread {rate['one']:.2f} (x{info['ratio_1']:.2f}), {cores} threads "
+          f"{rate['all']:.2f} (x{info['ratio_cores']:.2f}; target >= x{info['target']:.2f}); "
+          f"load average {load_before[0]:.2f} -> {load_after[0]:.2f}")
+    benchmark.pedantic(transfer(cores), rounds=3, iterations=1)
