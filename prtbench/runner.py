@@ -188,6 +188,9 @@ def prepare(request: RunRequest) -> PreparedRun:
     if request.variant not in VARIANTS:
         raise UnknownNameError("variant", request.variant, VARIANTS)
     reference_method = _reference_method(request.reference, request.profile)
+    from .parallel import thread_count
+
+    thread_count()  # a bad $PRTBENCH_THREADS fails here, not at the first ray query
     if reference_method is None:  # only the path-traced reference needs Mitsuba
         from .reference import check_variant
 

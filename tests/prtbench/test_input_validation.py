@@ -203,3 +203,9 @@ def test_bogus_variant_fails_in_run_before_the_precompute(monkeypatch, tmp_path,
     monkeypatch.setenv(reference.VARIANT_ENV, "bogus")
     err = _run_fails(tmp_path, monkeypatch, capfd, ["--method", "vertex", "--scene", "plane"])
     assert "'bogus'" in err and "scalar_rgb" in err
+
+
+def test_bad_thread_count_fails_in_run_before_any_work(monkeypatch, tmp_path, capfd):
+    monkeypatch.setenv("PRTBENCH_THREADS", "0")
+    err = _run_fails(tmp_path, monkeypatch, capfd, ["--method", "vertex", "--scene", "plane"])
+    assert "PRTBENCH_THREADS='0'" in err and "1..256" in err
