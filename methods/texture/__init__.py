@@ -76,6 +76,9 @@ class TextureConfig:
         "", "Light baked into the bounce textures (registry name or HDR path; empty: the "
             "scene's default light). Rendering under another light is an error.")
     seed: int = knob(0, "Seed of the per-texel ray patterns.")
+    visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
+                                  "(V = 1), the trivial image the regression gate must beat; "
+                                  "needs bounces=0 (no ray hits anything to bounce from).")
 
 
 class TextureMethod(Method):
@@ -115,6 +118,10 @@ class TextureMethod(Method):
             raise InvalidInputError(
                 f"padding={config.padding} with texture_resolution={config.texture_resolution}; "
                 "accepted: padding <= texture_resolution / 8")
+        if config.bounces > 0 and not config.visibility:
+            raise InvalidInputError(
+                f"bounces={config.bounces} with visibility=False; accepted: bounces=0 when "
+                "visibility is off (unoccluded rays hit nothing to bounce from)")
         if config.bounces > 0:
             cls.bake_light(scene, config)  # unknown names fail before any work
 
@@ -146,7 +153,7 @@ class TextureMethod(Method):
         clock = time.perf_counter()
         transfer_at_texels = compute_transfer(
             scene, points, normals, bands=config.sh_bands, rays_per_point=config.rays_per_point,
-            seed=config.seed, progress=progress)
+            seed=config.seed, progress=progress, visibility=config.visibility)
         times["transfer_s"] = time.perf_counter() - clock
 
         def dilated(values: np.ndarray) -> np.ndarray:
