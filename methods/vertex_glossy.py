@@ -180,7 +180,9 @@ class _GlossyVertexMethod(Method):
     """Shared validation and renderer construction of the glossy vertex methods."""
 
     profile_overrides = _PROFILES
-    regression_case = {"variant": "glossy"}
+    #: As for ``vertex``: a subdivided ground under the sun, where shadows are what is measured.
+    regression_case = {"variant": "glossy", "light": "sun",
+                       "scene_params": {"ground_subdivisions": 32}}
     _mode: int
 
     @classmethod

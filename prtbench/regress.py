@@ -77,27 +77,36 @@ def _mean(rows: Sequence[Mapping[str, float]]) -> dict[str, float]:
     return {k: float(sum(r[k] for r in rows) / len(rows)) for k in rows[0]}
 
 
-def _request(method: str, case: Mapping[str, Any], overrides: Mapping[str, Any] | None = None):
+def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **fields):
+    """The :class:`~prtbench.runner.RunRequest` of ``method``'s regression case (smoke profile).
+
+    ``overrides`` are config overrides (``--set``); ``fields`` replace request fields (e.g.
+    ``store_results=True`` in a smoke test). Nothing is written by default.
+    """
+    from .method import METHODS
     from .runner import RunRequest
 
-    return RunRequest(method=method, scene=case["scene"], variant=case["variant"],
-                      light=case["light"], profile="smoke", out_dir=None,
-                      overrides=dict(overrides or {}),
-                      scene_params=dict(case.get("scene_params", {})),
-                      store_results=False, write_images=False)
+    case = regression_case(METHODS.get(method))
+    values = dict(method=method, scene=case["scene"], variant=case["variant"],
+                  light=case["light"], profile="smoke", out_dir=None,
+                  overrides=dict(overrides or {}),
+                  scene_params=dict(case.get("scene_params", {})),
+                  store_results=False, write_images=False)
+    values.update(fields)
+    return RunRequest(**values)
 
 
-def trivial_metrics(method: str, case: Mapping[str, Any]) -> dict[str, dict[str, float]]:
-    """Mean (over the case's views) metrics of the flat and half-bright images.
+def trivial_metrics(request) -> dict[str, dict[str, float]]:
+    """Mean (over the request's views) metrics of the flat and half-bright images.
 
-    The reference and mask are those the run measured against (same profile, resolution,
-    spp and bounces; the reference comes from the same cache).
+    The reference and mask are those a run of ``request`` measures against (same profile,
+    resolution, spp and bounces; the reference comes from the same cache).
     """
     from .reference import render_reference
     from .runner import geometry_mask, prepare
     from .trivial import trivial_scores
 
-    prepared = prepare(_request(method, case))
+    prepared = prepare(request)
     scene = prepared.scene
     per_view = []
     for view in scene.trajectory.views:
@@ -109,22 +118,48 @@ def trivial_metrics(method: str, case: Mapping[str, Any]) -> dict[str, dict[str,
     return {name: _mean([v[name] for v in per_view]) for name in per_view[0]}
 
 
+def trivial_results(request) -> tuple[dict[str, dict[str, float]], dict[str, str]]:
+    """(metrics of every trivial image of ``request``, skipped images with their reason).
+
+    Adds the ``unshadowed`` render (the same request with ``visibility=False``) where the
+    method has a visibility knob.
+    """
+    from dataclasses import replace
+
+    from .method import METHODS
+    from .runner import run
+
+    trivial, skipped = trivial_metrics(request), {}
+    reason = visibility_knob(METHODS.get(request.method))
+    if reason is None:
+        unshadowed = replace(request, overrides={**request.overrides, "visibility": False},
+                             store_results=False, write_images=False, out_dir=None,
+                             json_path=None)
+        trivial["unshadowed"] = run(unshadowed, progress=False, echo=False).mean_metrics()
+    else:
+        skipped["unshadowed"] = reason
+    return trivial, skipped
+
+
+def gate(request, metrics: Mapping[str, float]) -> list[str]:
+    """Lines naming each trivial image of ``request`` that ``metrics`` do not beat.
+
+    For smoke tests: ``assert not gate(request, summary.mean_metrics())``.
+    """
+    trivial, _ = trivial_results(request)
+    return gate_failures(metrics, trivial)
+
+
 def measure(method: str) -> Measurement:
     """Run ``method`` on its regression case (smoke profile), with its trivial images."""
     from .method import METHODS
     from .runner import run
 
-    cls = METHODS.get(method)
-    case = regression_case(cls)
-    summary = run(_request(method, case), progress=False, echo=False)
-    result = Measurement(case, summary.mean_metrics(), trivial_metrics(method, case))
-    reason = visibility_knob(cls)
-    if reason is None:
-        unshadowed = run(_request(method, case, {"visibility": False}), progress=False, echo=False)
-        result.trivial["unshadowed"] = unshadowed.mean_metrics()
-    else:
-        result.skipped["unshadowed"] = reason
-    return result
+    request = case_request(method)
+    summary = run(request, progress=False, echo=False)
+    trivial, skipped = trivial_results(request)
+    return Measurement(regression_case(METHODS.get(method)), summary.mean_metrics(), trivial,
+                       skipped)
 
 
 @contextmanager

@@ -87,7 +87,8 @@ class TextureMethod(Method):
     Config = TextureConfig
     precompute_version = "1"
     product: ClassVar[str] = "tpfl"
-    regression_case = {"variant": "glossy"}
+    #: The sun, as for the vertex methods: shadows are what a transfer texture must get right.
+    regression_case = {"variant": "glossy", "light": "sun"}
     profile_overrides = {
         # Small atlases need thin padding to pack ~20k-triangle scenes (plants, room) at 128².
         "smoke": {"texture_resolution": 128, "padding": 1, "rays_per_point": 64, "sh_bands": 4},
