@@ -157,13 +157,13 @@ def test_mesh_scenes_and_bad_knobs_are_rejected_before_any_work():
         cls.make_config({"partition": "grid"}, profile="smoke")  # a mesh-only knob
 
 
-def test_smoke_through_the_runner_on_sdf_rabbit():
+def test_smoke_through_the_runner_beats_the_trivial_images():
     from prtbench.results import load
     from prtbench.runner import run
 
     from prtbench.regress import case_request, gate
 
-    request = case_request("learnt-sdf", store_results=True)  # sdf-rabbit glossy, smoke
+    request = case_request("learnt-sdf", store_results=True)  # sdf-car glossy, smoke
     summary = run(request, progress=False, echo=False)
     assert len(summary.views) == 1
     # Beats the flat, half-bright and unshadowed (visibility=False) images of its reference.
