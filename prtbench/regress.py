@@ -211,11 +211,26 @@ def _number(value: Any) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def _entry_metrics(name: str, entry: Any) -> tuple[dict[str, tuple[float, float]], list[str]]:
-    """(metric -> (value, tolerance), problems) of one baseline entry."""
+def _known_metric(key: str) -> bool:
+    from .metrics import LDR_METRICS
+
+    return (key[:-len("_masked")] if key.endswith("_masked") else key) in LDR_METRICS
+
+
+def check_entry(entry: Any, case: Mapping[str, Any]) -> tuple[dict[str, tuple[float, float]],
+                                                               list[str]]:
+    """(metric -> (value, tolerance), problems) of one baseline entry, before any work.
+
+    Problems (each a FAIL line): not an object, a case other than ``case``, no or empty
+    ``metrics``, a value or tolerance that is not a finite number (tolerance >= 0), a metric
+    name the runner never produces.
+    """
     if not isinstance(entry, dict):
         return {}, [f"baseline entry is {json.dumps(entry)}; accepted: an object with 'case' "
                     "and 'metrics'"]
+    if entry.get("case") != dict(case):
+        return {}, [f"baseline recorded on case {json.dumps(entry.get('case'))}, but the "
+                    f"method's regression case is {json.dumps(dict(case))}; update it"]
     specs = entry.get("metrics")
     if not isinstance(specs, dict) or not specs:
         return {}, [f"baseline entry has metrics={json.dumps(specs)}; accepted: a non-empty "
@@ -224,7 +239,10 @@ def _entry_metrics(name: str, entry: Any) -> tuple[dict[str, tuple[float, float]
     for metric, spec in specs.items():
         value = _number(spec.get("value")) if isinstance(spec, dict) else None
         tol = _number(spec.get("tolerance")) if isinstance(spec, dict) else None
-        if value is None or tol is None or tol < 0:
+        if not _known_metric(metric):
+            problems.append(f"baseline metric '{metric}' is not produced by a run; accepted: "
+                            f"{', '.join(TOLERANCES)} or another metric of prtbench.metrics")
+        elif value is None or tol is None or tol < 0:
             problems.append(f"baseline {metric} = {json.dumps(spec)}; accepted: "
                             "{\"value\": finite number, \"tolerance\": finite number >= 0}")
         else:
@@ -249,16 +267,8 @@ def _report_gate(name: str, result: Measurement) -> bool:
     return not failures
 
 
-def _compare(name: str, entry: Any, result: Measurement) -> bool:
-    if not isinstance(entry, dict) or entry.get("case") != result.case:
-        case = entry.get("case") if isinstance(entry, dict) else None
-        print(f"{name}: FAIL baseline recorded on case {json.dumps(case)}, but the method's "
-              f"regression case is {json.dumps(result.case)}; update it")
-        return False
-    specs, problems = _entry_metrics(name, entry)
-    for line in problems:
-        print(f"{name}: FAIL {line}")
-    ok = not problems
+def _compare(name: str, specs: Mapping[str, tuple[float, float]], result: Measurement) -> bool:
+    ok = True
     for metric, (want, tol) in specs.items():
         if metric not in result.metrics:
             print(f"{name}: FAIL baseline metric '{metric}' is not produced; produced: "
@@ -303,6 +313,19 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
         METHODS.check(name)
     ok = True
     refused: list[str] = []
+    checked: dict[str, dict[str, tuple[float, float]]] = {}
+    if not update:  # baseline problems are reported before any work
+        for name in names:
+            if name not in baselines:
+                print(f"{name}: FAIL no baseline (run `prtbench regress --update --method "
+                      f"{name}`)")
+                ok = False
+                continue
+            specs, problems = check_entry(baselines[name], regression_case(METHODS.get(name)))
+            for line in problems:
+                print(f"{name}: FAIL {line}")
+            ok &= not problems
+            checked[name] = specs
     with _cache_dir(cache):
         for name in names:
             result = measure(name)
@@ -319,11 +342,7 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
                 print(f"{name}: baseline updated "
                       + ", ".join(f"{m}={result.metrics[m]:.4f}" for m in TOLERANCES))
                 continue
-            if name not in baselines:
-                print(f"{name}: FAIL no baseline (run `prtbench regress --update --method {name}`)")
-                ok = False
-                continue
-            ok &= _compare(name, baselines[name], result)
+            ok &= _compare(name, checked.get(name, {}), result)
     if update:
         if refused:
             print(f"refused to update the baselines: {', '.join(refused)} "

@@ -17,10 +17,11 @@ import pytest
 from prtbench import regress as regress_mod
 from prtbench.cli import main
 from prtbench.errors import InvalidInputError
+from prtbench.method import METHODS
 from prtbench.regress import TOLERANCES, Measurement, regress
 from prtbench.trivial import FLIP_MARGIN, PSNR_MARGIN_DB
 
-CASE = {"scene": "plants", "variant": "diffuse", "light": "sky"}
+CASE = regress_mod.regression_case(METHODS.get("vertex"))
 GOOD = {"psnr_masked": 22.0, "ssim_masked": 0.6, "flip_masked": 0.15, "mae": 0.04}
 TRIVIAL = {"flat": {"psnr_masked": 17.0, "flip_masked": 0.40},
            "half": {"psnr_masked": 16.0, "flip_masked": 0.48}}
@@ -112,6 +113,7 @@ def test_malformed_entries_fail_with_a_line_never_pass(fake, tmp_path, capsys, k
     assert regress(methods=["vertex"], baseline_path=path) is False
     out = capsys.readouterr().out
     assert "vertex: FAIL" in out and "Traceback" not in out
+    assert out.index("vertex: FAIL") < out.index("vertex: trivial")  # reported before the work
     assert main(["regress", "--method", "vertex", "--baselines", str(path)]) == 1
 
 
@@ -211,3 +213,10 @@ def test_a_renderer_returning_a_trivial_image_fails_regress(monkeypatch, capsys,
     _patch_render(monkeypatch, transform)
     assert regress(methods=["vertex"]) is False
     assert f"vertex: FAIL does not beat the {mutation} image" in capsys.readouterr().out
+
+
+def test_a_known_metric_the_run_does_not_produce_fails(fake, tmp_path, capsys):
+    path = _write(tmp_path, {"vertex": {"case": CASE, "metrics": {
+        "flip_hdr": {"value": 0.1, "tolerance": 0.1}}}})  # needs HDR images: never in regress
+    assert regress(methods=["vertex"], baseline_path=path) is False
+    assert "vertex: FAIL baseline metric 'flip_hdr' is not produced" in capsys.readouterr().out
