@@ -23,6 +23,7 @@ import math
 import os
 import sys
 import tempfile
+import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -328,8 +329,10 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
             checked[name] = specs
     with _cache_dir(cache):
         for name in names:
+            start = time.perf_counter()
             result = measure(name)
-            print(f"{name}: {_fmt(result.metrics)} on {json.dumps(result.case)}")
+            print(f"{name}: {_fmt(result.metrics)} on {json.dumps(result.case)} "
+                  f"({time.perf_counter() - start:.1f} s with its trivial images)")
             gate_ok = _report_gate(name, result)
             ok &= gate_ok
             if update:
