@@ -309,6 +309,9 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
 
     path = Path(baseline_path or DEFAULT_BASELINES)
     baselines = load_baselines(path, required=not update)
+    if cache is not None and Path(cache).exists() and not Path(cache).is_dir():
+        raise InvalidInputError(f"--cache '{cache}' is a file; accepted: a folder (created if "
+                                "missing)")
     names = list(methods) if methods else METHODS.names()
     for name in names:
         METHODS.check(name)

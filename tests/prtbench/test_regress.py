@@ -220,3 +220,11 @@ def test_a_known_metric_the_run_does_not_produce_fails(fake, tmp_path, capsys):
         "flip_hdr": {"value": 0.1, "tolerance": 0.1}}}})  # needs HDR images: never in regress
     assert regress(methods=["vertex"], baseline_path=path) is False
     assert "vertex: FAIL baseline metric 'flip_hdr' is not produced" in capsys.readouterr().out
+
+
+def test_a_cache_that_is_a_file_is_refused(fake, tmp_path):
+    path = _write(tmp_path, {"vertex": _entry()})
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InvalidInputError, match="is a file"):
+        regress(methods=["vertex"], baseline_path=path, cache=tmp_path / "file")
+    assert fake["caches"] == []
