@@ -165,18 +165,27 @@ def measure(method: str) -> Measurement:
 
 @contextmanager
 def _cache_dir(cache: Path | None) -> Iterator[Path]:
-    """``$PRTBENCH_CACHE`` pointed at ``cache``, or at a fresh temporary folder, meanwhile."""
-    previous = os.environ.get("PRTBENCH_CACHE")
+    """``$PRTBENCH_CACHE`` pointed at ``cache``, or at a fresh temporary folder, meanwhile.
+
+    Fetched assets (pinned, checksummed downloads, not artifacts of our code) stay where they
+    were: ``$PRTBENCH_ASSETS`` is pointed at the previous assets folder meanwhile.
+    """
+    from .assets import assets_root
+
+    saved = {k: os.environ.get(k) for k in ("PRTBENCH_CACHE", "PRTBENCH_ASSETS")}
+    assets = assets_root()
     with tempfile.TemporaryDirectory(prefix="prtbench-regress-") as fresh:
         root = Path(cache) if cache is not None else Path(fresh)
         os.environ["PRTBENCH_CACHE"] = str(root)
+        os.environ["PRTBENCH_ASSETS"] = str(assets)
         try:
             yield root
         finally:
-            if previous is None:
-                os.environ.pop("PRTBENCH_CACHE", None)
-            else:
-                os.environ["PRTBENCH_CACHE"] = previous
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
 
 
 def load_baselines(path: Path, *, required: bool) -> dict[str, Any]:

@@ -169,8 +169,21 @@ def test_a_fresh_temporary_cache_is_used_by_default_and_removed(fake, tmp_path, 
                  "--cache", str(tmp_path / "mine")]) == 0
     assert fake["caches"][-1] == str(tmp_path / "mine")
     monkeypatch.delenv("PRTBENCH_CACHE")
+    monkeypatch.delenv("PRTBENCH_ASSETS", raising=False)
     assert regress(methods=["vertex"], baseline_path=path)
-    assert "PRTBENCH_CACHE" not in os.environ
+    assert "PRTBENCH_CACHE" not in os.environ and "PRTBENCH_ASSETS" not in os.environ
+
+
+def test_fetched_assets_stay_visible_in_the_fresh_cache(tmp_path, monkeypatch):
+    from prtbench.assets import assets_root
+
+    monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "user"))
+    monkeypatch.delenv("PRTBENCH_ASSETS", raising=False)
+    seen = []
+    monkeypatch.setattr(regress_mod, "measure", lambda name: seen.append(assets_root()) or
+                        Measurement(dict(CASE), dict(GOOD), {k: dict(v) for k, v in TRIVIAL.items()}))
+    assert regress(methods=["vertex"], baseline_path=_write(tmp_path, {"vertex": _entry()}))
+    assert seen == [tmp_path / "user" / "assets"]
 
 
 # --- the real vertex case: mutations must fail, the unpatched method passes -----------------------
