@@ -2,7 +2,8 @@
 
 Every registered method runs in the ``smoke`` profile on its regression case (by default
 ``plants`` diffuse under ``sky``, one view; a method's ``regression_case`` class attribute
-overrides scene, variant and light) and
+overrides scene, variant and light, and may add ``scene_params`` and config ``overrides``
+where the smoke profile alone is too small to beat the trivial images) and
 
 1. its masked metrics must beat every trivial image of the same reference by the margins of
    :mod:`prtbench.trivial` (the flat mean-colour image, the half-bright reference and, for
@@ -81,8 +82,9 @@ def _mean(rows: Sequence[Mapping[str, float]]) -> dict[str, float]:
 def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **fields):
     """The :class:`~prtbench.runner.RunRequest` of ``method``'s regression case (smoke profile).
 
-    ``overrides`` are config overrides (``--set``); ``fields`` replace request fields (e.g.
-    ``store_results=True`` in a smoke test). Nothing is written by default.
+    The case's own ``overrides`` (config knobs a method needs for a meaningful smoke case,
+    e.g. a longer training) come first, then ``overrides`` (``--set``); ``fields`` replace
+    request fields (e.g. ``store_results=True`` in a smoke test). Nothing is written by default.
     """
     from .method import METHODS
     from .runner import RunRequest
@@ -90,7 +92,7 @@ def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **f
     case = regression_case(METHODS.get(method))
     values = dict(method=method, scene=case["scene"], variant=case["variant"],
                   light=case["light"], profile="smoke", out_dir=None,
-                  overrides=dict(overrides or {}),
+                  overrides={**case.get("overrides", {}), **(overrides or {})},
                   scene_params=dict(case.get("scene_params", {})),
                   store_results=False, write_images=False)
     values.update(fields)

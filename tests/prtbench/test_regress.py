@@ -241,3 +241,14 @@ def test_a_cache_that_is_a_file_is_refused(fake, tmp_path):
     with pytest.raises(InvalidInputError, match="is a file"):
         regress(methods=["vertex"], baseline_path=path, cache=tmp_path / "file")
     assert fake["caches"] == []
+
+
+def test_case_request_applies_the_case_scene_params_and_overrides():
+    from prtbench.regress import case_request
+
+    vertex = case_request("vertex")
+    assert vertex.profile == "smoke" and vertex.scene_params == CASE["scene_params"]
+    assert not vertex.store_results and vertex.out_dir is None
+    learnt = case_request("learnt", overrides={"visibility": False}, store_results=True)
+    assert learnt.overrides == {"samples": 32_768, "epochs": 40, "visibility": False}
+    assert learnt.store_results
