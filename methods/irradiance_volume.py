@@ -71,6 +71,10 @@ class IrradianceVolumeConfig:
     precision: str = knob("float32", "Storage of the probe radiance texture.",
                           choices=tuple(PRECISION_BYTES))
     seed: int = seed_knob("Seed of the ray pattern's shift and the per-probe rotations.")
+    visibility: bool = knob(True, "Trace occlusion at the probes. False: every ray escapes "
+                                  "(V_0 = √(4π) at every probe, all probes valid), i.e. "
+                                  "unshadowed environment lighting, the trivial image the "
+                                  "regression gate must beat.")
 
 
 def memory_closed_form(*, resolution: int, sh_bands: int, precision: str) -> int:
@@ -125,7 +129,8 @@ def random_rotations(count: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_probe: int,
-                     seed: int = 0, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                     seed: int = 0, progress: bool = False,
+                     occlusion: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Visibility SH and back-face hit fraction of probes in space.
 
     Parameters
@@ -136,6 +141,8 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     rays_per_probe : int
     seed : int
     progress : bool
+    occlusion : bool
+        Trace rays (default); ``False`` counts every ray as escaping (no ray is traced).
 
     Returns
     -------
@@ -165,6 +172,9 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray]:
         """(visibility SH, back-face fraction) of the probes in ``sl``."""
         dirs = np.einsum("pij,mj->pmi", world_from_local[sl], local).reshape(-1, 3)
+        if not occlusion:  # visibility off: every ray escapes, nothing is traced
+            visible = np.ones((len(dirs) // m, m))
+            return rotate(visible @ y_local, world_from_local[sl]), np.zeros(len(visible))
         hits = tracer.first_hit(np.repeat(p[sl], m, axis=0), dirs)
         hit = hits.face >= 0
         back = np.zeros_like(hit)
@@ -229,7 +239,8 @@ class IrradianceVolume(Method):
                                              padding=config.padding)
         visibility, backface = probe_visibility(
             Tracer.from_scene(scene), positions, bands=config.sh_bands,
-            rays_per_probe=config.rays_per_probe, seed=config.seed, progress=progress)
+            rays_per_probe=config.rays_per_probe, seed=config.seed, progress=progress,
+            occlusion=config.visibility)
         valid = backface <= config.invalid_backface_fraction
         arrays = {"visibility": visibility.astype(np.float32), "valid": valid.astype(np.uint8),
                   "backface_fraction": backface.astype(np.float32),

@@ -50,6 +50,8 @@ class VertexGlossyConfig:
     rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
                                low=1, high=1 << 20)
     seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
+    visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
+                                  "(V = 1), the trivial image the regression gate must beat.")
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,8 @@ class SloanMatrixConfig:
     seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
     max_bytes: int = knob(2 << 30, "Largest transfer-matrix buffer accepted (V · n⁴ · 4 bytes).",
                           low=1, high=1 << 40)
+    visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
+                                  "(V = 1), the trivial image the regression gate must beat.")
 
 
 def _validate_materials(method: str, scene) -> None:
@@ -96,7 +100,8 @@ def _vertex_transfer(scene, config, *, progress: bool) -> np.ndarray:
     positions, normals, _, _ = scene.merged()
     return np.asarray(compute_transfer(scene, positions, normals, bands=config.sh_bands,
                                        rays_per_point=config.rays_per_point, seed=config.seed,
-                                       progress=progress), dtype=np.float32)
+                                       progress=progress, visibility=config.visibility),
+                      dtype=np.float32)
 
 
 #: Scratch budget (bytes) of the per-ray SH values of one chunk of the matrix precompute.
@@ -105,7 +110,7 @@ _MATRIX_SCRATCH_BYTES = 64 << 20
 
 def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *, bands: int,
                               rays_per_point: int, seed: int = 0, progress: bool = True,
-                              ) -> np.ndarray:
+                              visibility: bool = True) -> np.ndarray:
     """Sloan's shadowed glossy transfer matrices M_ki(p) = ∫ Y_k Y_i V(p, ω) max(n·ω, 0) dω.
 
     Same rays as :func:`prtbench.transfer.compute_transfer` for the same ``seed`` (its
@@ -123,6 +128,8 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
     rays_per_point : int
     seed : int
     progress : bool
+    visibility : bool
+        Trace occlusion (default); ``False`` sets V = 1 (unshadowed matrices, no ray traced).
 
     Returns
     -------
@@ -146,7 +153,8 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
         frames = pattern.frames(n[sl], sl)
         dirs = pattern.world_directions(frames, sl)  # (c, M, 3) float32
         origins = np.repeat(origins_all[sl], m, axis=0)
-        visible = ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
+        visible = (~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m) if visibility
+                   else np.ones((sl.stop - sl.start, m), dtype=bool))
         y = eval_sh(dirs.reshape(-1, 3).astype(np.float64), bands).reshape(-1, m, n2)
         weighted = y * (visible[..., None] * (np.pi / m))
         # One (n² × M)·(M × n²) BLAS product per point.
@@ -178,7 +186,9 @@ class _GlossyVertexMethod(Method):
     """Shared validation and renderer construction of the glossy vertex methods."""
 
     profile_overrides = _PROFILES
-    regression_case = {"variant": "glossy"}
+    #: As for ``vertex``: a subdivided ground under the sun, where shadows are what is measured.
+    regression_case = {"variant": "glossy", "light": "sun",
+                       "scene_params": {"ground_subdivisions": 32}}
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
     main_knobs = ("sh_bands",)
     #: On a diffuse scene these render what ``vertex`` renders, at a higher cost.
@@ -285,7 +295,8 @@ class SloanMatrix(_GlossyVertexMethod):
         positions, normals, _, _ = scene.merged()
         matrices = compute_transfer_matrices(scene, positions, normals, bands=config.sh_bands,
                                              rays_per_point=config.rays_per_point,
-                                             seed=config.seed, progress=progress)
+                                             seed=config.seed, progress=progress,
+                                             visibility=config.visibility)
         return Artifact(cls.name, {"matrices": matrices},
                         {"vertices": int(len(matrices)), "sh_bands": config.sh_bands})
 

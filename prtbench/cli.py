@@ -182,7 +182,8 @@ def _regress(args: argparse.Namespace) -> int:
     from .regress import regress
 
     ok = regress(update=args.update, methods=args.method or None,
-                 baseline_path=Path(args.baselines) if args.baselines else None)
+                 baseline_path=Path(args.baselines) if args.baselines else None,
+                 cache=Path(args.cache) if args.cache else None)
     return 0 if ok else 1
 
 
@@ -348,6 +349,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")
     p.add_argument("--method", action="append", help="only these methods")
     p.add_argument("--baselines", default=None, help="baseline file (default tests/baselines/metrics.json)")
+    p.add_argument("--cache", default=None, metavar="DIR",
+                   help="artifact cache to reuse (default: a fresh temporary one, so stale "
+                        "artifacts cannot pass)")
     p.set_defaults(func=_regress)
 
     p = sub.add_parser("advise", help="the cheapest configuration meeting a target, verified by a run")

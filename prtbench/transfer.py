@@ -244,7 +244,7 @@ class ShRotation:
 
 def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *, bands: int,
                      rays_per_point: int, seed: int, chunks: list[slice], with_stderr: bool,
-                     bar) -> tuple[np.ndarray, np.ndarray | None]:
+                     bar, visibility: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     m = rays_per_point
     n2 = bands * bands
     pattern = RayPattern(len(points), m, seed)
@@ -269,18 +269,20 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
 
     scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
 
-    def visibility(sl: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def trace_visible(sl: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = sl.stop - sl.start
         frames = pattern.frames(normals[sl], sl)
         dirs = pattern.world_directions(frames, sl,
                                         out=scratch.get("dirs", (n, m, 3), np.float32))
         origins = repeat_rows(origins_all[sl], m, out=scratch.get("origins", (n * m, 3),
                                                                   np.float32))
+        if not visibility:  # the unshadowed transfer: V = 1, the same rays and estimator
+            return frames, dirs, np.ones((n, m), dtype=bool)
         return frames, dirs, ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
 
     def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray | None]:
         """(transfer, stderr or None) of the points in ``sl``: rays, trace and SH sums."""
-        frames, dirs, visible = visibility(sl)
+        frames, dirs, visible = trace_visible(sl)
         if with_stderr:  # per-ray SH: the second moment needs every sample
             mean = np.empty((len(visible), n2))
             error = np.empty((len(visible), n2))
@@ -315,35 +317,40 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     return transfer, stderr
 
 
-def _transfer_key(kind: str, scene: "Scene", points, normals, bands, rays_per_point, seed) -> str:
+def _transfer_key(kind: str, scene: "Scene", points, normals, bands, rays_per_point, seed,
+                  visibility: bool = True) -> str:
+    # Shadowed keys are unchanged from before the visibility switch existed (no cache rebuild).
+    extra = () if visibility else ("unshadowed",)
     return content_key(kind, TRANSFER_VERSION, scene.content_hash(), points, normals, int(bands),
-                       int(rays_per_point), int(seed))
+                       int(rays_per_point), int(seed), *extra)
 
 
 def _compute(scene, points, normals, *, bands, rays_per_point, seed, chunk_points, progress,
-             use_cache, tracer, with_stderr) -> dict[str, np.ndarray]:
+             use_cache, tracer, with_stderr, visibility=True) -> dict[str, np.ndarray]:
     p, n = _check_inputs(points, normals, bands, rays_per_point)
     kind = "transfer-stderr" if with_stderr else "transfer"
+    visibility = bool(visibility)
 
     def compute() -> dict[str, np.ndarray]:
         tr = tracer if tracer is not None else Tracer.from_scene(scene)
         chunks = _chunks(len(p), rays_per_point, chunk_points)
         with _progress(len(p), f"transfer {scene.name}", progress) as bar, _single_threaded_blas():
             t, e = _transfer_chunks(tr, p, n, bands=bands, rays_per_point=rays_per_point,
-                                    seed=seed, chunks=chunks, with_stderr=with_stderr, bar=bar)
+                                    seed=seed, chunks=chunks, with_stderr=with_stderr, bar=bar,
+                                    visibility=visibility)
         out = {"transfer": t.astype(np.float32)}
         if e is not None:
             out["stderr"] = e.astype(np.float32)
         return out
 
-    key = _transfer_key(kind, scene, p, n, bands, rays_per_point, seed)
+    key = _transfer_key(kind, scene, p, n, bands, rays_per_point, seed, visibility)
     return cached_arrays(kind, key, compute, use_cache=use_cache)
 
 
 def compute_transfer(scene: "Scene", points: np.ndarray, normals: np.ndarray, *, bands: int,
                      rays_per_point: int, seed: int = 0, chunk_points: int | None = None,
                      progress: bool = True, use_cache: bool = True,
-                     tracer: Tracer | None = None) -> np.ndarray:
+                     tracer: Tracer | None = None, visibility: bool = True) -> np.ndarray:
     """Shadowed diffuse transfer vectors T_i(p) = ∫ Y_i V max(n·ω, 0) dω.
 
     Parameters
@@ -366,6 +373,10 @@ def compute_transfer(scene: "Scene", points: np.ndarray, normals: np.ndarray, *,
         Read/write the content-addressed cache (atomic writes: an interrupted run stores nothing).
     tracer : Tracer, optional
         A tracer already built for ``scene`` (saves the BVH build).
+    visibility : bool
+        Trace occlusion (default). ``False`` sets V = 1: the unshadowed transfer
+        ∫ Y_i max(n·ω, 0) dω with the same rays and estimator, the trivial image a shadowed
+        method must beat (:mod:`prtbench.trivial`); no ray is traced.
 
     Returns
     -------
@@ -373,7 +384,7 @@ def compute_transfer(scene: "Scene", points: np.ndarray, normals: np.ndarray, *,
     """
     return _compute(scene, points, normals, bands=bands, rays_per_point=rays_per_point, seed=seed,
                     chunk_points=chunk_points, progress=progress, use_cache=use_cache,
-                    tracer=tracer, with_stderr=False)["transfer"]
+                    tracer=tracer, with_stderr=False, visibility=visibility)["transfer"]
 
 
 def compute_transfer_with_stderr(scene: "Scene", points: np.ndarray, normals: np.ndarray, *,

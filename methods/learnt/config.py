@@ -18,7 +18,7 @@ TRAINING_KNOBS = (
     "sh_bands", "samples", "rays_per_point", "vertex_margin", "object_balance", "heldout_vertices",
     "heldout_rays", "hidden", "layers", "pe_frequencies", "leaky_slope", "loss",
     "projection_canvas", "batch_size", "epochs", "learning_rate", "target_margin", "seed",
-    "partition", "grid_cells", "overlap", "merge_variance",
+    "partition", "grid_cells", "overlap", "merge_variance", "visibility",
 )
 
 
@@ -46,6 +46,9 @@ class LearntConfig:
                                  "more) whose transfer measures the held-out error.",
                                  low=1, high=1 << 24)
     heldout_rays: int = knob(1024, "Rays per held-out vertex.", low=1, high=1 << 20)
+    visibility: bool = knob(True, "Trace occlusion in the training (and held-out) transfer. "
+                                  "False: the network learns the unshadowed transfer (V = 1), "
+                                  "the trivial image the regression gate must beat.")
     # --- network (thesis §4.1.1, fig. 4.2) ----------------------------------------------------
     hidden: int = knob(64, "Neurons per layer k (a multiple of 4: the GLSL path packs mat4s).",
                        low=4, high=4096)
@@ -103,7 +106,8 @@ class LearntConfig:
 #: ``quick`` and ``smoke`` draw 5-60x fewer points than the thesis's 1M, which starves small
 #: objects in scenes with a large ground (the teaset's teapot gets 0.9% of the area-uniform
 #: points): there, each object gets a share ∝ √area (``object_balance`` 0.5). ``paper`` keeps
-#: the thesis's area-uniform sampling.
+#: the thesis's area-uniform sampling. (``smoke`` is sized for plumbing tests; the regression
+#: case trains more, see ``LearntTransfer.regression_case``.)
 PROFILE_OVERRIDES = {
     "smoke": {"samples": 16_384, "rays_per_point": 64, "object_balance": 0.5,
               "heldout_vertices": 1000, "heldout_rays": 128, "hidden": 32, "epochs": 4,

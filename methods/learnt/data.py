@@ -109,7 +109,7 @@ def _draw(scene, samples: int, *, seed: int, vertex_margin: float, balance: floa
 
 def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, seed: int,
                      vertex_margin: float, object_balance: float = 0.0,
-                     progress: bool = True) -> TransferSamples:
+                     progress: bool = True, visibility: bool = True) -> TransferSamples:
     """Turk samples of the whole scene with their transfer (cached by geometry).
 
     Parameters
@@ -126,6 +126,8 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
     object_balance : float
         0: area-uniform over the scene; > 0: per-object counts, see :func:`object_counts`.
     progress : bool
+    visibility : bool
+        Trace occlusion (default); ``False``: unshadowed transfer (V = 1).
 
     Returns
     -------
@@ -135,6 +137,8 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
              vertex_margin]
     if object_balance:  # keeps the keys of area-uniform data sets unchanged
         parts.append(object_balance)
+    if not visibility:  # likewise for shadowed data sets
+        parts.append("unshadowed")
     key = content_key("learnt-train", *parts)
 
     def compute() -> dict[str, np.ndarray]:
@@ -144,7 +148,7 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
                                      balance=object_balance)
         transfer = compute_transfer(scene, points, normals, bands=bands,
                                     rays_per_point=rays_per_point, seed=seed, progress=progress,
-                                    use_cache=False)
+                                    use_cache=False, visibility=visibility)
         return {"points": points.astype(np.float32), "normals": normals.astype(np.float32),
                 "transfer": np.asarray(transfer, np.float32),
                 "object_ids": ids.astype(np.int32)}
@@ -155,14 +159,14 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
 
 
 def heldout_samples(scene, *, max_vertices: int, rays_per_point: int, bands: int, seed: int,
-                    progress: bool = True) -> TransferSamples:
+                    progress: bool = True, visibility: bool = True) -> TransferSamples:
     """Transfer at mesh vertices (a seeded subset of at most ``max_vertices``), cached.
 
     Vertices are never training points (those keep a barycentric margin), so the error here
     measures how well the network interpolates the surface rather than how it memorises.
     """
     key = content_key("learnt-heldout", DATA_VERSION, geometry_key(scene), max_vertices,
-                      rays_per_point, bands, seed)
+                      rays_per_point, bands, seed, *(() if visibility else ("unshadowed",)))
 
     def compute() -> dict[str, np.ndarray]:
         from prtbench.transfer import compute_transfer
@@ -176,7 +180,7 @@ def heldout_samples(scene, *, max_vertices: int, rays_per_point: int, bands: int
             rows = np.sort(rng.choice(len(rows), size=max_vertices, replace=False))
         transfer = compute_transfer(scene, positions[rows], normals[rows], bands=bands,
                                     rays_per_point=rays_per_point, seed=seed + 7919,
-                                    progress=progress, use_cache=False)
+                                    progress=progress, use_cache=False, visibility=visibility)
         return {"points": positions[rows].astype(np.float32),
                 "normals": normals[rows].astype(np.float32),
                 "transfer": np.asarray(transfer, np.float32), "object_ids": object_ids[rows]}

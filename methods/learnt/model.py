@@ -72,6 +72,8 @@ def training_key(scene, config: LearntConfig) -> str:
     knobs = {k: getattr(config, k) for k in TRAINING_KNOBS}
     if not config.object_balance:  # added later: area-uniform models keep their cache keys
         del knobs["object_balance"]
+    if config.visibility:  # likewise: shadowed models keep their cache keys
+        del knobs["visibility"]
     return content_key("learnt-model", MODEL_VERSION, geometry_key(scene), knobs)
 
 
@@ -114,7 +116,8 @@ def train_model(scene, config: LearntConfig, *, progress: bool = True
         samples = training_samples(scene, samples=config.samples,
                                    rays_per_point=config.rays_per_point, bands=config.sh_bands,
                                    seed=config.seed, vertex_margin=config.vertex_margin,
-                                   object_balance=config.object_balance, progress=progress)
+                                   object_balance=config.object_balance, progress=progress,
+                                   visibility=config.visibility)
         data_s = time.perf_counter() - start
         spec = spec_of(config)
         partition = build_partition(scene, samples, kind=config.partition,
@@ -139,11 +142,12 @@ def train_model(scene, config: LearntConfig, *, progress: bool = True
         model = LearntModel(spec, networks, partition)
         heldout = heldout_samples(scene, max_vertices=config.heldout_vertices,
                                   rays_per_point=config.heldout_rays, bands=config.sh_bands,
-                                  seed=config.seed + 1, progress=progress)
+                                  seed=config.seed + 1, progress=progress,
+                                  visibility=config.visibility)
         surface = training_samples(scene, samples=config.heldout_vertices,
                                    rays_per_point=config.heldout_rays, bands=config.sh_bands,
                                    seed=config.seed + 1000, vertex_margin=config.vertex_margin,
-                                   progress=progress)
+                                   progress=progress, visibility=config.visibility)
         stats = {
             "data_s": data_s, "train_s": train_s, "device": device,
             "train_points": int(len(samples)), "groups": partition.n_groups,

@@ -77,6 +77,9 @@ class TextureConfig:
         "", "Light baked into the bounce textures (registry name or HDR path; empty: the "
             "scene's default light). Rendering under another light is an error.")
     seed: int = seed_knob("Seed of the per-texel ray patterns.")
+    visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
+                                  "(V = 1), the trivial image the regression gate must beat; "
+                                  "needs bounces=0 (no ray hits anything to bounce from).")
 
 
 class TextureMethod(Method):
@@ -89,7 +92,8 @@ class TextureMethod(Method):
     product: ClassVar[str] = "tpfl"
     light_baking_knobs = {"bounces": ("fixed-light", 0, "bounces > 0 bakes bounce_light into "
                                       "the interreflection textures")}
-    regression_case = {"variant": "glossy"}
+    #: The sun, as for the vertex methods: shadows are what a transfer texture must get right.
+    regression_case = {"variant": "glossy", "light": "sun"}
     profile_overrides = {
         # Small atlases need thin padding to pack ~20k-triangle scenes (plants, room) at 128².
         "smoke": {"texture_resolution": 128, "padding": 1, "rays_per_point": 64, "sh_bands": 4},
@@ -120,6 +124,10 @@ class TextureMethod(Method):
             raise InvalidInputError(
                 f"padding={config.padding} with texture_resolution={config.texture_resolution}; "
                 "accepted: padding <= texture_resolution / 8")
+        if config.bounces > 0 and not config.visibility:
+            raise InvalidInputError(
+                f"bounces={config.bounces} with visibility=False; accepted: bounces=0 when "
+                "visibility is off (unoccluded rays hit nothing to bounce from)")
         # Per texel and texture: G-buffer (29 B), float64 points and normals (48 B), then per
         # coefficient and transfer texture the float64 transfer, its dilated copy and the
         # float32 result (28 B).
@@ -161,7 +169,7 @@ class TextureMethod(Method):
         clock = time.perf_counter()
         transfer_at_texels = compute_transfer(
             scene, points, normals, bands=config.sh_bands, rays_per_point=config.rays_per_point,
-            seed=config.seed, progress=progress)
+            seed=config.seed, progress=progress, visibility=config.visibility)
         times["transfer_s"] = time.perf_counter() - clock
 
         def dilated(values: np.ndarray) -> np.ndarray:

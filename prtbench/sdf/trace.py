@@ -306,7 +306,7 @@ class SdfTracer:
 def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *, bands: int,
                          rays_per_point: int, seed: int = 0, progress: bool = True,
                          backend: str = "numpy", chunk_points: int | None = None,
-                         use_cache: bool = True) -> np.ndarray:
+                         use_cache: bool = True, visibility: bool = True) -> np.ndarray:
     """Shadowed diffuse transfer T_i(p) = ∫ Y_i V max(n·ω, 0) dω with SDF visibility.
 
     The estimator of :func:`prtbench.transfer.compute_transfer`, built from its own pieces:
@@ -325,6 +325,8 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
         As in :func:`prtbench.transfer.compute_transfer`.
     backend : {"numpy", "gl"}
         Where the sphere tracing runs (:class:`SdfTracer`).
+    visibility : bool
+        Trace occlusion (default); ``False`` sets V = 1 (unshadowed transfer, nothing traced).
 
     Returns
     -------
@@ -339,7 +341,8 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
                                 f"{', '.join(BACKENDS)}")
     p, n = tr._check_inputs(points, normals, bands, rays_per_point)
     key = content_key("sdf-transfer", tr.TRANSFER_VERSION, SDF_TRANSFER_VERSION, surface.spec(),
-                      backend, p, n, int(bands), int(rays_per_point), int(seed))
+                      backend, p, n, int(bands), int(rays_per_point), int(seed),
+                      *(() if visibility else ("unshadowed",)))  # shadowed keys unchanged
 
     def compute() -> dict[str, np.ndarray]:
         from tqdm import tqdm
@@ -357,8 +360,12 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
                 for sl in tr._chunks(len(p), m, chunk_points):
                     frames = pattern.frames(n[sl], sl)
                     directions = pattern.world_directions(frames, sl).reshape(-1, 3)
-                    hidden = tracer.occluded(np.repeat(origins_all[sl], m, axis=0), directions)
-                    visible = ~hidden.reshape(-1, m)
+                    if visibility:
+                        hidden = tracer.occluded(np.repeat(origins_all[sl], m, axis=0),
+                                                 directions)
+                        visible = ~hidden.reshape(-1, m)
+                    else:
+                        visible = np.ones((sl.stop - sl.start, m), dtype=bool)
                     local = np.empty((len(visible), bands * bands))
                     for k, rows in pattern.groups(sl):
                         local[rows] = visible[rows].astype(np.float64) @ local_sh[k]

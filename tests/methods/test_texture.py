@@ -15,7 +15,7 @@ from prtbench.lights import get_light
 from prtbench.method import METHODS, load_or_precompute
 from prtbench.raytrace import Tracer
 from prtbench.reference import render_reference
-from prtbench.runner import RunRequest, geometry_mask, run
+from prtbench.runner import geometry_mask, run
 from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
 
 QUICK = {"texture_resolution": 256, "rays_per_point": 256}
@@ -218,9 +218,12 @@ def test_float16_overflow_of_bounce_textures_is_an_error(tmp_path):
 # --- through the runner -----------------------------------------------------------------------
 
 def test_runner_smoke_profile():
-    summary = run(RunRequest(method="texture-tpfl", scene="plants", variant="glossy",
-                             profile="smoke", out_dir=None, store_results=False), progress=False,
-                  echo=False)
+    from prtbench.regress import case_request, gate
+
+    request = case_request("texture-tpfl")  # plants glossy under the sun, smoke profile
+    summary = run(request, progress=False, echo=False)
     view = summary.views[0]
     assert summary.config["texture_resolution"] == 128 and summary.memory_bytes > 0
-    assert view.metrics["psnr_masked"] > 15.0 and view.frame_ms > 0
+    assert view.frame_ms > 0
+    # Beats the flat, half-bright and unshadowed (visibility=False) images of its reference.
+    assert not gate(request, summary.mean_metrics())

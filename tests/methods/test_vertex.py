@@ -83,3 +83,14 @@ def test_bounces_brighten_a_concave_scene():
     bounced, _ = _render(scene, sh_bands=3, rays_per_point=64, bounces=1)
     assert bounced.mean() > direct.mean() * 1.01
     assert np.all(bounced >= direct - 1e-3)
+
+
+def test_smoke_run_through_the_runner_beats_the_trivial_images():
+    from prtbench.regress import case_request, gate
+    from prtbench.runner import run
+
+    request = case_request("vertex")  # plants diffuse, 32×32 ground, sun; smoke profile
+    summary = run(request, progress=False, echo=False)
+    assert summary.memory_bytes > 0 and summary.config["visibility"] is True
+    # Beats the flat, half-bright and unshadowed (visibility=False) images of its reference.
+    assert not gate(request, summary.mean_metrics())

@@ -287,10 +287,13 @@ def test_unknown_knob_is_rejected():
 
 
 def test_smoke_run_through_the_runner():
-    from prtbench.runner import RunRequest, run
+    from prtbench.runner import run
 
-    summary = run(RunRequest(method="vertex-tp", scene="sphere-over-plane", variant="glossy",
-                             profile="smoke", out_dir=None, store_results=False,
-                             write_images=False), progress=False, echo=False)
-    assert summary.memory_bytes > 0
-    assert summary.mean_metrics()["psnr_masked"] > 15.0
+    from prtbench.regress import case_request, gate
+
+    for name in ("vertex-tp", "sloan-matrix"):  # plants glossy, 32×32 ground, sun; smoke
+        request = case_request(name)
+        summary = run(request, progress=False, echo=False)
+        assert summary.memory_bytes > 0
+        # Beats the flat, half-bright and unshadowed (visibility=False) images of its reference.
+        assert not gate(request, summary.mean_metrics()), name
