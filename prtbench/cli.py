@@ -127,7 +127,7 @@ def _table(args: argparse.Namespace) -> int:
     reproduction = TABLES.get(args.name)
     paths = run_table(reproduction, profile=args.profile,
                       results_path=Path(args.results) if args.results else None,
-                      reports_dir=Path(args.reports))
+                      reports_dir=Path(args.reports), from_store=args.from_store)
     for p in paths:
         print(f"wrote {p}")
     return 0
@@ -138,7 +138,8 @@ def _figure(args: argparse.Namespace) -> int:
 
     figure = FIGURES.get(args.name)
     for p in figure.make(profile=args.profile, reports_dir=Path(args.reports),
-                         results_path=Path(args.results) if args.results else None):
+                         results_path=Path(args.results) if args.results else None,
+                         from_store=args.from_store):
         print(f"wrote {p}")
     return 0
 
@@ -206,6 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--profile", default="quick")
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
+    p.add_argument("--from-store", action="store_true",
+                   help="rebuild the report from the newest stored run (no measuring)")
     p.set_defaults(func=_table)
 
     p = sub.add_parser("figure", help="regenerate a paper figure from our renders")
@@ -213,6 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--profile", default="quick")
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
+    p.add_argument("--from-store", action="store_true",
+                   help="rebuild the report from the newest stored run (no measuring)")
     p.set_defaults(func=_figure)
 
     p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")

@@ -102,6 +102,20 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None,
     return runs
 
 
+def records(frame) -> list[dict]:
+    """Rows of a DataFrame as dicts of plain Python values (NaN stays a float NaN)."""
+    out = []
+    for record in frame.to_dict("records"):
+        out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in record.items()})
+    return out
+
+
+def error_image(test: np.ndarray, reference: np.ndarray, *, scale: float) -> np.ndarray:
+    """|test − reference| (linear, summed over RGB) × ``scale``, as a grey display image."""
+    e = np.abs(np.asarray(test) - np.asarray(reference)).sum(axis=-1) * scale
+    return np.repeat(np.clip(e, 0.0, 1.0)[..., None], 3, axis=-1).astype(np.float32)
+
+
 def fps(rows) -> float:
     """1000 / median over the rows' per-view median frame times (ms)."""
     return 1000.0 / float(np.median(rows["frame_ms"]))
