@@ -18,6 +18,8 @@ FONT_SIZE = 9  # points: 12.5 px at DPI 100
 _LINE_PX = 1.45 * FONT_SIZE * DPI / 72  # line height of the labels, in pixels
 _CHAR_PX = 0.62 * FONT_SIZE * DPI / 72  # average glyph width (DejaVu Sans), in pixels
 GAP = 6
+#: Panels narrower than this are magnified by a whole factor (nearest neighbour).
+MIN_PANEL_PX = 160
 #: PNG text chunks that would change from run to run or machine to machine: left out.
 METADATA = {"Software": None}
 
@@ -64,7 +66,8 @@ def panel_grid(path: Path, panels: Sequence[Sequence[np.ndarray | None]], *,
     ----------
     path : Path
     panels : list of rows of ndarray, shape (H, W, 3), float in [0, 1], or None (left blank)
-        All panels share one shape; each is drawn at its own pixel size.
+        All panels share one shape; each is drawn at its own pixel size (magnified by a whole
+        factor when narrower than :data:`MIN_PANEL_PX`).
     titles : list of rows of str, optional
         A title above each panel (may hold newlines).
     column_labels, row_labels : sequence of str
@@ -79,6 +82,8 @@ def panel_grid(path: Path, panels: Sequence[Sequence[np.ndarray | None]], *,
     if len(shapes) != 1:
         raise ValueError(f"panels must share one shape; got {sorted(shapes)}")
     h, w = shapes.pop()
+    zoom = max(1, int(np.ceil(MIN_PANEL_PX / w)))  # small (smoke) panels: whole-pixel zoom
+    h, w = h * zoom, w * zoom
     n_rows, n_cols = len(panels), max(len(r) for r in panels)
     title_h = _text_px(title)[1] + GAP if title else 0
     col_h = max((_text_px(t)[1] for t in column_labels), default=0)
