@@ -16,7 +16,7 @@ from prtbench.errors import AssetMissingError, InvalidInputError
 from prtbench.reproduction import TABLES, run_table
 from prtbench.results import load
 from prtbench.scene import get_scene
-from reproductions import _panels
+from reproductions import _panels, _plots
 from reproductions import figure_3_4 as f34
 from reproductions import table_3_1 as t31
 from reproductions import table_3_2 as t32
@@ -204,13 +204,10 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
     png, md = f34.FIGURE.make(profile="smoke", reports_dir=tmp_path, results_path=results,
                               progress=False)
     image = imageio.read_png(png)
-    # One row of 3 panels (2 methods + reference) of 64×48 with 4-pixel gaps, labels beside.
-    gap, h, w = 4, 48, 64
-    label_w = _panels.text_size("plants\n16890 tris")[0]
-    col_h = max(_panels.text_size(t)[1] for t in ["vertex TPFL", "texture TPFL",
-                                                    "Mitsuba path\n32 spp"])
-    title_h = _panels.text_size(f34.FIGURE.title + " (smoke profile)", size=16)[1] + gap
-    assert image.shape == (title_h + col_h + 2 * gap + h + gap, label_w + 2 * gap + 3 * w + 3 * gap, 3)
+    # One row of 3 panels (2 methods + reference) of 64×48, magnified 3× (nearest neighbour) to
+    # at least _plots.MIN_PANEL_PX wide, labels above and beside.
+    zoom = -(-_plots.MIN_PANEL_PX // 64)
+    assert image.shape[1] > 3 * 64 * zoom and image.shape[0] > 48 * zoom
     stored = load(results)
     assert sorted(stored["method"]) == ["texture-tpfl", "vertex-tpfl"]
     text = md.read_text()
@@ -218,11 +215,24 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
         assert f"{1000.0 / row['frame_ms']:.4g}" in text and row["run_id"] in text
 
 
-def test_grid_and_wireframe_overlay_geometry():
+def test_grid_and_wireframe_overlay_geometry(tmp_path):
+    from prtbench import imageio
+
     a = np.full((10, 20, 3), 0.5, np.float32)
-    out = _panels.grid([[a, None], [a, a]], gap=2)
-    assert out.shape == (2 * 10 + 2 + 2, 2 * 20 + 2 + 2, 3)
-    assert np.all(out[0:10, 0:20] == 0.5) and np.all(out[0:10, 22:42] == 1.0)  # blank = white
+    b = np.zeros((10, 20, 3), np.float32)
+    b[..., 0] = 1.0  # pure red: no label or background pixel has this colour
+    png = _plots.panel_grid(tmp_path / "grid.png", [[a, None], [b, b]], titles=[["x", "y"]])
+    out = imageio.read_png(png)
+    zoom = -(-_plots.MIN_PANEL_PX // 20)
+    red = (out[..., 0] > 0.99) & (out[..., 1] < 0.01) & (out[..., 2] < 0.01)
+    # Two red panels drawn at zoom × their pixel size (± a line of pixels at the axes' edges).
+    assert abs(int(red.sum()) - 2 * 10 * 20 * zoom**2) <= 2 * 2 * (10 + 20) * zoom
+    rows, cols = np.nonzero(red)
+    assert cols.max() - cols.min() + 1 > 2 * 20 * zoom  # side by side, with a gap
+    grey = np.all(np.abs(out - 0.5) < 1.5 / 255, axis=-1)
+    assert abs(int(grey.sum()) - 10 * 20 * zoom**2) <= 2 * (10 + 20) * zoom  # the blank cell is white
+    assert png.read_bytes() == _plots.panel_grid(tmp_path / "again.png", [[a, None], [b, b]],
+                                                 titles=[["x", "y"]]).read_bytes()
     panel = np.full((40, 80, 3), 0.5, np.float32)
     edges = np.zeros((80, 160), np.float32)
     edges[46, :] = 1.0  # one horizontal edge at 2×: half of panel row 23's coverage
