@@ -102,7 +102,8 @@ def _write(results_path: Path | None, statements) -> None:
         conn.close()
 
 
-def _resolve(results_path: str | Path | None) -> Path:
+def store_path(results_path: str | Path | None) -> Path:
+    """``results_path``, or the default results store (:func:`prtbench.results.default_path`)."""
     from .results import default_path
 
     return Path(results_path) if results_path is not None else default_path()
@@ -110,7 +111,7 @@ def _resolve(results_path: str | Path | None) -> Path:
 
 def _read(results_path: str | Path | None, sql: str, params: Sequence[Any] = ()) -> list[tuple]:
     """Rows of a read-only query; [] when the file or the table does not exist (nothing created)."""
-    path = _resolve(results_path)
+    path = store_path(results_path)
     if not path.is_file():
         return []
     try:
@@ -292,7 +293,7 @@ def latest_report(kind: str, name: str, *, profile: str, results_path: str | Pat
         return None
     kind, name, profile, rid, sha, stamp, members = found[0]
     return ReportRun(kind, name, profile, rid, sha, stamp, json.loads(members),
-                     _resolve(results_path))
+                     store_path(results_path))
 
 
 def require_report(kind: str, name: str, *, profile: str,
@@ -300,7 +301,7 @@ def require_report(kind: str, name: str, *, profile: str,
     """:func:`latest_report`, or a one-line error naming the command that fills the store."""
     report = latest_report(kind, name, profile=profile, results_path=results_path)
     if report is None:
-        path = _resolve(results_path)
+        path = store_path(results_path)
         raise PrtbenchError(
             f"no complete run of {kind} '{name}' for profile '{profile}' in results store "
             f"'{path}'; measure it first with: prtbench {kind} {name} --profile {profile} "

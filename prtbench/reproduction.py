@@ -244,7 +244,7 @@ def _measure_table(reproduction: Reproduction, *, profile: str, results_path: Pa
         members.setdefault(own, {})
     run_id = measurements.new_run_id()
     partial = Stored(measurements.ReportRun("table", reproduction.name, profile, run_id, "", "",
-                                            members, measurements._resolve(results_path)))
+                                            members, measurements.store_path(results_path)))
     extra = reproduction.measure_rows(partial.frame(), profile=profile)
     for table, rows in extra.items():
         measurements.record(table, rows, results_path=results_path, run_id=run_id,

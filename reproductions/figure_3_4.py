@@ -103,7 +103,8 @@ class Figure34(Figure):
 
         profile = stored.profile
         frame, images = stored.frame(), stored.images()
-        scenes = _panels.records(stored.table(TABLE))
+        table = stored.table(TABLE)
+        scenes = _panels.records(table)
         rows, captions, row_labels, caption_rows = [], [], [], []
         for info in scenes:
             scene = info["scene"]
@@ -133,10 +134,11 @@ class Figure34(Figure):
                                 row_labels=row_labels, captions=captions,
                                 title=self.title + f" ({profile} profile)")
         md = _panels.write_caption(reports_dir / f"figure-{self.name}.md",
-                                   self.caption_lines(frame, scenes, caption_rows, profile=profile))
+                                   self.caption_lines(frame, table, caption_rows, profile=profile))
         return [png, md]
 
-    def caption_lines(self, frame, scenes, rows, *, profile: str) -> list[str]:
+    def caption_lines(self, frame, table, rows, *, profile: str) -> list[str]:
+        scenes = _panels.records(table)
         renderer = ", ".join(sorted(set(frame["renderer"].astype(str))))
         timing = ", ".join(sorted(set(frame["timing_source"].astype(str))))
         width, height = int(frame["width"].iloc[0]), int(frame["height"].iloc[0])
@@ -146,7 +148,7 @@ class Figure34(Figure):
                  f"Profile `{profile}`: panels {width}×{height}, "
                  f"first trajectory view, glossy variants. GL renderer: {renderer}; timing: "
                  f"{timing}. On a CPU rasteriser (llvmpipe) FPS are comparable only within this "
-                 "figure.", "", provenance_line([frame], profile=profile), "",
+                 "figure.", "", provenance_line([frame, table], profile=profile), "",
                  "Columns 1–4 use each scene as built: a two-triangle ground (the room: a "
                  "two-triangle floor). Column 5 subdivides the ground/floor into "
                  f"2·{HIGH_SUBDIVISIONS}² = {2 * HIGH_SUBDIVISIONS**2} triangles and shades per "

@@ -77,7 +77,8 @@ class Figure35(Figure):
 
         profile = stored.profile
         frame, images = stored.frame(), stored.images()
-        extra = {r["cell_run_id"]: r for r in _panels.records(stored.table(TABLE))}
+        table = stored.table(TABLE)
+        extra = {r["cell_run_id"]: r for r in _panels.records(table)}
         grid_rows, captions, row_labels, caption_rows = [], [], [], []
         for scene, variant, paper_scene in SCENES:
             texts, panels = [], []
@@ -118,7 +119,7 @@ class Figure35(Figure):
             f"{int(frame['height'].iloc[0])}, first trajectory view, the scene's default light "
             f"(baked into the bounce texture). GL renderer: {renderer}; timing: {timing} (on "
             "llvmpipe FPS are comparable only within this figure).", "",
-            provenance_line([frame], profile=profile), "",
+            provenance_line([frame, table], profile=profile), "",
             "\"PSNR vs own reference\" is the stored runner metric (0 bounces against the "
             "direct-only reference, 1 bounce against the one-bounce reference). \"PSNR vs "
             "1-bounce reference\" is measured after the runs from their images with the same "
