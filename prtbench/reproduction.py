@@ -64,15 +64,16 @@ class Reproduction:
         """
         return []
 
-    #: Measurement tables (:mod:`prtbench.measurements`) whose columns, keyed by
-    #: ``cell_run_id``, :func:`run_table` joins onto the rows before :meth:`format`.
+    #: Measurement tables (:mod:`prtbench.measurements`) :func:`run_table` hands to
+    #: :meth:`format`: tables with a ``cell_run_id`` column are joined onto the rows of that run;
+    #: others (facts of the whole report) are DataFrames in ``frame.attrs[name]``.
     measurement_tables: Sequence[str] = ()
 
     def measure_rows(self, frame, *, profile: str) -> dict[str, list[dict]]:
         """Further measurements of the swept runs: measurement table name -> rows.
 
-        Called once the sweep's rows are stored, with their DataFrame; each row should carry
-        ``cell_run_id`` (the runner run it belongs to). The default measures nothing.
+        Called once the sweep's rows are stored, with their DataFrame; rows that belong to one
+        runner run carry its id as ``cell_run_id``. The default measures nothing.
         """
         return {}
 
@@ -211,8 +212,14 @@ def run_table(reproduction: Reproduction, *, profile: str = "quick",
                                 progress=progress)
     stored = Stored(report)
     frame = stored.frame()
+    per_report = {}
     for table in reproduction.measurement_tables:
-        frame = _merge_measurements(frame, stored.table(table))
+        rows = stored.table(table)
+        if "cell_run_id" in rows.columns:
+            frame = _merge_measurements(frame, rows)
+        else:  # facts of the whole report (e.g. a GL limit): frame.attrs[table]
+            per_report[table] = rows
+    frame.attrs.update(per_report)
     header, rows = reproduction.format(frame, profile=profile)
     reports_dir = Path(reports_dir)
     reports_dir.mkdir(parents=True, exist_ok=True)

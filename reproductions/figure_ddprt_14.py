@@ -76,7 +76,7 @@ class FigureDdprt14(Figure):
         from methods.data_driven.dataset import build_dataset
         from methods.data_driven.evaluation import image_study, lightmap_study, reference_lightmaps
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import measurements
+        from prtbench import gl, measurements
         from prtbench.imageio import display
         from prtbench.lights import get_light
         from prtbench.profiles import get_profile
@@ -121,7 +121,8 @@ class FigureDdprt14(Figure):
             images[f"projection n={n}"] = display(study.projection, exposure=gain)
         images[f"Mitsuba indirect ({spp} spp)"] = display(study.reference, exposure=gain)
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
-                            profile=profile, device=device_description(), images=images)
+                            profile=profile, renderer=gl.renderer_string(),  # image_study's GL
+                            device=device_description(), images=images)
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:

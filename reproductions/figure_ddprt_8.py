@@ -47,7 +47,7 @@ class FigureDdprt8(Figure):
         from methods.data_driven.evaluation import held_out, image_study
         from methods.data_driven.lights import DirectionalLight
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import measurements
+        from prtbench import gl, measurements
         from prtbench.imageio import display
         from prtbench.profiles import get_profile
         from prtbench.runner import device_description
@@ -92,7 +92,8 @@ class FigureDdprt8(Figure):
                 f"{short}: |indirect error| x4": _panels.error_image(study.ours, study.reference,
                                                                      scale=gain)})
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
-                            profile=profile, device=device_description(), images=images)
+                            profile=profile, renderer=gl.renderer_string(),  # image_study's GL
+                            device=device_description(), images=images)
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:

@@ -255,3 +255,21 @@ def test_wireframe_edges_of_a_two_triangle_plane():
     assert geometry.any()
     # Two triangles: edges are a thin fraction of the covered pixels, and only where covered.
     assert 0.0 < edges[geometry].mean() < 0.25 and edges[~geometry].max() == 0.0
+
+
+def test_table_3_2_from_the_store_quotes_the_stored_gl_limit(tmp_path, monkeypatch):
+    _only_plants(monkeypatch)
+    results = tmp_path / "results.sqlite"
+    first, second = tmp_path / "measured", tmp_path / "rebuilt"
+    run_table(_Plants32(), profile="smoke", results_path=results, reports_dir=first,
+              progress=False)
+    measured = t32.gl_storage_block_limit()
+    assert measured > 0
+    # Rebuilt on "another machine" (a GL with a 1 MiB limit): the report still quotes the
+    # limit the sweep ran under, and the Sloan status does not change.
+    monkeypatch.setattr(t32, "gl_storage_block_limit", lambda: 1 << 20)
+    run_table(_Plants32(), profile="smoke", results_path=results, reports_dir=second,
+              progress=False, from_store=True)
+    for name in ("table-3.2.md", "table-3.2.csv"):
+        assert (second / name).read_bytes() == (first / name).read_bytes()
+    assert f"hold at most {measured / 2**20:.0f} MiB" in (first / "table-3.2.md").read_text()
