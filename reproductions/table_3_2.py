@@ -104,6 +104,8 @@ def transfer_texture_bytes(resolution: int, bands: int, *, sets: int = 1,
 
 #: Measurement table holding the GL limit the sweep ran under (one row per report run).
 GL_TABLE = "table-3.2-gl"
+#: Measurement table of each run's scene size (``cell_run_id``, vertices, objects).
+SCENE_TABLE = "table-3.2-scenes"
 
 
 def gl_storage_block_limit() -> int:
@@ -232,14 +234,21 @@ class Table32(Reproduction):
                                   label={"paper_scene": choice.paper, "scheme": key}))
         return cells
 
-    measurement_tables = (GL_TABLE,)
+    measurement_tables = (GL_TABLE, SCENE_TABLE)
 
     def measure_rows(self, frame, *, profile: str) -> dict[str, list[dict]]:
-        """This GL's shader-storage block limit, which the notes and refusals quote."""
+        """This GL's shader-storage block limit, which the notes and refusals quote, and the
+        vertex and object counts of each run's scene, which the closed forms use."""
         from prtbench import gl
 
+        scenes = []
+        for run_id, run in frame.groupby("run_id", sort=False):
+            scene = _scene_of(run.iloc[0])
+            scenes.append({"cell_run_id": run_id, "scene_vertices": scene.n_vertices,
+                           "scene_objects": len(scene.objects)})
         return {GL_TABLE: [{"gl_max_shader_storage_block_size": gl_storage_block_limit(),
-                            "gl_renderer": gl.renderer_string()}]}
+                            "gl_renderer": gl.renderer_string()}],
+                SCENE_TABLE: scenes}
 
     def markdown(self, header, rows, *, profile: str, frame) -> str:
         measured = set(frame["scene"]) if len(frame) else set()
@@ -283,14 +292,14 @@ class Table32(Reproduction):
                                   key=lambda p: order.index(p) if p in order else 99):
             part = frame[frame["label_paper_scene"] == paper_scene]
             first = part.iloc[0]
-            scene = _scene_of(first)
-            vertices = scene.n_vertices
+            scene = _scene_of(first)  # for the Sloan refusal (the method's validate)
+            vertices = int(first["scene_vertices"])
             by_scheme = {k: p for k, p in part.groupby("label_scheme")}
             texture = by_scheme.get("ours")
             tex_cfg = (json.loads(texture["config"].iloc[0]) if texture is not None
                        else _default_config("texture-tpfl", profile, paper_scene))
             resolution = int(tex_cfg["texture_resolution"])
-            sets = len(scene.objects) if tex_cfg.get("texture_sets") else 1
+            sets = int(first["scene_objects"]) if tex_cfg.get("texture_sets") else 1
             for key, label, method in SCHEMES:
                 run = by_scheme.get(key)
                 cfg = (json.loads(run["config"].iloc[0]) if run is not None
