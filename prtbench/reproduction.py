@@ -171,11 +171,6 @@ class Stored:
 
         return measurements.load_images(self.run_id, results_path=self.results_path)
 
-    def rows(self, run_id: str):
-        """The result rows of one runner run."""
-        frame = self.frame()
-        return frame[frame["run_id"] == run_id]
-
 
 def _write_text(path: Path, text: str) -> Path:
     with atomic_path(path) as tmp:
