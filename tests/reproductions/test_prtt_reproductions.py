@@ -231,8 +231,16 @@ def test_grid_and_wireframe_overlay_geometry(tmp_path):
     assert cols.max() - cols.min() + 1 > 2 * 20 * zoom  # side by side, with a gap
     grey = np.all(np.abs(out - 0.5) < 1.5 / 255, axis=-1)
     assert abs(int(grey.sum()) - 10 * 20 * zoom**2) <= 2 * (10 + 20) * zoom  # the blank cell is white
+    # Reproducible bytes: no software version or timestamp text chunk in the PNG.
     assert png.read_bytes() == _plots.panel_grid(tmp_path / "again.png", [[a, None], [b, b]],
                                                  titles=[["x", "y"]]).read_bytes()
+    data, chunks, at = png.read_bytes(), [], 8
+    while at < len(data):
+        size = int.from_bytes(data[at:at + 4], "big")
+        chunks.append(data[at + 4:at + 8])
+        at += 12 + size
+    assert chunks[0] == b"IHDR" and chunks[-1] == b"IEND"
+    assert not {b"tEXt", b"iTXt", b"zTXt", b"tIME"} & set(chunks), chunks
     panel = np.full((40, 80, 3), 0.5, np.float32)
     edges = np.zeros((80, 160), np.float32)
     edges[46, :] = 1.0  # one horizontal edge at 2×: half of panel row 23's coverage
