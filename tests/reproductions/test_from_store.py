@@ -18,6 +18,15 @@ def _no_bare_constants(text: str):
     return json.loads(text, parse_constant=refuse)
 
 
+def _counts(store):
+    conn = sqlite3.connect(store)
+    try:
+        return tuple(conn.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0]
+                     for t in ("renders", "measurements", "measurement_images", "report_runs"))
+    finally:
+        conn.close()
+
+
 def _files(folder):
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
 
@@ -111,8 +120,10 @@ def test_figure_rebuilt_from_the_store_is_byte_identical(tmp_path, capsys):
     first, second = tmp_path / "measured", tmp_path / "rebuilt"
     assert main(["figure", "ddprt-14", "--profile", "smoke", "--results", str(results),
                  "--reports", str(first)]) == 0
+    before = _counts(results)
     assert main(["figure", "ddprt-14", "--profile", "smoke", "--results", str(results),
                  "--reports", str(second), "--from-store"]) == 0
+    assert _counts(results) == before  # nothing measured again
     written = _files(first)
     assert set(written) == {"figure-ddprt-14.png", "figure-ddprt-14-images.png",
                             "figure-ddprt-14.csv", "figure-ddprt-14.md"}
@@ -146,8 +157,11 @@ def test_table_rebuilt_from_the_store_is_byte_identical_with_its_leak_column(tmp
     results = tmp_path / "results.sqlite"
     first, second = tmp_path / "measured", tmp_path / "rebuilt"
     run_table(Tiny(), profile="smoke", results_path=results, reports_dir=first, progress=False)
+    before = _counts(results)
+    assert before[0] > 0 and before[1] == 1 and before[3] == 1
     run_table(Tiny(), profile="smoke", results_path=results, reports_dir=second, progress=False,
               from_store=True)
+    assert _counts(results) == before  # nothing measured again
     assert _files(second) == _files(first)
     rows = list(csv.DictReader(open(first / "table-volume.csv")))
     leak = measurements.load(tv.LEAK_TABLE, results_path=results)
