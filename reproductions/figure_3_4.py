@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure, provenance_line
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods, scene_choices
@@ -95,7 +95,7 @@ class Figure34(Figure):
                 scenes[scene] = {"scene": scene, "n_triangles": run.scene.n_triangles,
                                  "substitution": run.scene.substitution or ""}
         measurements.record(TABLE, list(scenes.values()), results_path=results_path,
-                            run_id=run_id, profile=profile, images=images)
+                            run_id=run_id, profile=profile, images=display_panels(images))
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:

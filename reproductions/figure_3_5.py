@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure, provenance_line
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods
@@ -69,7 +69,7 @@ class Figure35(Figure):
             images[f"{scene}/reference-0"] = zero.reference
             images[f"{scene}/reference-1"] = one.reference
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
-                            profile=profile, images=images)
+                            profile=profile, images=display_panels(images))
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Figure, provenance_line
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods
@@ -117,7 +117,7 @@ class Figure36(Figure):
                "substitution": plain.scene.substitution or ""}
         measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
                             profile=profile, renderer=mapped["renderer"],
-                            device=device_description(), images=images)
+                            device=device_description(), images=display_panels(images))
         return {plain.run_id: dict(plain.cell.label)}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure, Stored, provenance_line
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line
 
 from . import _panels
 from .table_4_1 import ensure_methods, learnt_overrides
@@ -132,7 +132,7 @@ class Figure413(Figure):
                 "reference_spp": prof.reference_spp})
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=", ".join(sorted(renderers - {""})),
-                            device=device_description(), images=shown)
+                            device=device_description(), images=display_panels(shown))
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:

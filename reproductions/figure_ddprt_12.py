@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, provenance_line, write_csv
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "lion"
 SCENE_PARAMS = {"ground_subdivisions": 48}  # fair to vertex PRT: its ground can hold a shadow
@@ -135,7 +135,8 @@ class FigureDdprt12(Figure):
                                                                  scale=4.0 * scene.exposure)
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=", ".join(sorted(renderer_names - {""})),
-                            device=device_description(), images={**images, **errors})
+                            device=device_description(),
+                            images=display_panels({**images, **errors}))
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, provenance_line, write_csv
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 COUNTS = (1, 2, 4, 8, 16, 32, 64)
 RIDGES = (1e-3, 1e-2)
@@ -122,7 +122,7 @@ class FigureDdprt14(Figure):
         images[f"Mitsuba indirect ({spp} spp)"] = display(study.reference, exposure=gain)
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=gl.renderer_string(),  # image_study's GL
-                            device=device_description(), images=images)
+                            device=device_description(), images=display_panels(images))
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, provenance_line, write_csv
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "room"
 #: Measurement table of the figure's numbers (one row per light).
@@ -93,7 +93,7 @@ class FigureDdprt8(Figure):
                                                                      scale=gain)})
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=gl.renderer_string(),  # image_study's GL
-                            device=device_description(), images=images)
+                            device=device_description(), images=display_panels(images))
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
