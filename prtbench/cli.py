@@ -161,7 +161,7 @@ def _table(args: argparse.Namespace) -> int:
     _check_report_outputs(args)
     paths = run_table(reproduction, profile=args.profile,
                       results_path=Path(args.results) if args.results else None,
-                      reports_dir=Path(args.reports))
+                      reports_dir=Path(args.reports), from_store=args.from_store)
     for p in paths:
         print(f"wrote {p}")
     return 0
@@ -173,7 +173,8 @@ def _figure(args: argparse.Namespace) -> int:
     figure = FIGURES.get(args.name)
     _check_report_outputs(args)
     for p in figure.make(profile=args.profile, reports_dir=Path(args.reports),
-                         results_path=Path(args.results) if args.results else None):
+                         results_path=Path(args.results) if args.results else None,
+                         from_store=args.from_store):
         print(f"wrote {p}")
     return 0
 
@@ -313,6 +314,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--profile", default="quick")
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
+    p.add_argument("--from-store", action="store_true",
+                   help="rebuild the report from the newest stored run (no measuring)")
     p.set_defaults(func=_table)
 
     p = sub.add_parser("figure", help="regenerate a paper figure from our renders")
@@ -320,6 +323,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--profile", default="quick")
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
+    p.add_argument("--from-store", action="store_true",
+                   help="rebuild the report from the newest stored run (no measuring)")
     p.set_defaults(func=_figure)
 
     p = sub.add_parser("analyze", help="what a scene requires: bands, glossy, shadows, "

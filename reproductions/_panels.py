@@ -1,10 +1,10 @@
-"""Shared pieces of the PRTT reproductions: running cells, image panels, labels, wireframes.
+"""Shared pieces of the reproductions: running cells, panel images, wireframes, captions.
 
 Figures run their cells through the ordinary runner (:func:`run_cells`), so every number a
 figure prints is a stored result row, and the panels are the very images the runner measured
-(written as EXR/PNG into a scratch folder). Panels are assembled into labelled grids with
-numpy; text is drawn with Pillow (a dependency of scikit-image), wireframes with a small GL
-pass (``methods/shaders/wireframe.{vert,frag}``).
+(written as EXR/PNG into a scratch folder), stored with the figure's report run. Wireframes
+come from a small GL pass (``methods/shaders/wireframe.{vert,frag}``); labelled grids and plots
+are drawn with matplotlib in :mod:`reproductions._plots`.
 """
 
 from __future__ import annotations
@@ -21,9 +21,7 @@ import numpy as np
 
 from prtbench.reproduction import Cell
 
-#: Panel background and label colours (display space, RGB in [0, 1]).
-BACKGROUND = (1.0, 1.0, 1.0)
-TEXT = (0.0, 0.0, 0.0)
+#: Inset outline and wireframe colours (display space, RGB in [0, 1]).
 INSET_BORDER = (1.0, 1.0, 1.0)
 WIRE = (1.0, 0.85, 0.1)
 
@@ -102,6 +100,20 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None,
     return runs
 
 
+def records(frame) -> list[dict]:
+    """Rows of a DataFrame as dicts of plain Python values (NaN stays a float NaN)."""
+    out = []
+    for record in frame.to_dict("records"):
+        out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in record.items()})
+    return out
+
+
+def error_image(test: np.ndarray, reference: np.ndarray, *, scale: float) -> np.ndarray:
+    """|test − reference| (linear, summed over RGB) × ``scale``, as a grey display image."""
+    e = np.abs(np.asarray(test) - np.asarray(reference)).sum(axis=-1) * scale
+    return np.repeat(np.clip(e, 0.0, 1.0)[..., None], 3, axis=-1).astype(np.float32)
+
+
 def fps(rows) -> float:
     """1000 / median over the rows' per-view median frame times (ms)."""
     return 1000.0 / float(np.median(rows["frame_ms"]))
@@ -110,127 +122,6 @@ def fps(rows) -> float:
 def row_config(rows) -> dict:
     """The stored method config of a run (its first row)."""
     return json.loads(rows["config"].iloc[0])
-
-
-# --- text -------------------------------------------------------------------------------------
-
-def _font(size: int):
-    from PIL import ImageFont
-
-    try:
-        return ImageFont.load_default(size=size)
-    except TypeError:  # Pillow < 10.1: the fixed bitmap font
-        return ImageFont.load_default()
-
-
-def text_size(text: str, *, size: int = 14) -> tuple[int, int]:
-    """(width, height) in pixels of ``text`` (may hold newlines) at font ``size``."""
-    from PIL import Image, ImageDraw
-
-    draw = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    left, top, right, bottom = draw.multiline_textbbox((0, 0), text, font=_font(size), spacing=2)
-    return int(np.ceil(right)), int(np.ceil(bottom))
-
-
-def draw_text(image: np.ndarray, text: str, *, xy: tuple[int, int], size: int = 14,
-              color: Sequence[float] = TEXT, box: Sequence[float] | None = None,
-              pad: int = 2) -> np.ndarray:
-    """Draw ``text`` on a float image at pixel ``xy`` (top-left), optionally on a filled box.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W, 3), float in [0, 1]
-    text : str
-    xy : (int, int)
-        Column, row of the text's top-left corner.
-    size : int
-        Font size in pixels.
-    color, box : RGB in [0, 1]
-        Text colour and, if given, the colour of a box behind the text.
-
-    Returns
-    -------
-    ndarray, shape (H, W, 3), float32
-        A new image.
-    """
-    from PIL import Image, ImageDraw
-
-    rgb = (np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8)
-    canvas = Image.fromarray(rgb, "RGB")
-    draw = ImageDraw.Draw(canvas)
-    font = _font(size)
-    to8 = lambda c: tuple(int(round(255 * v)) for v in c)  # noqa: E731
-    if box is not None:
-        left, top, right, bottom = draw.multiline_textbbox(xy, text, font=font, spacing=2)
-        draw.rectangle((left - pad, top - pad, right + pad, bottom + pad), fill=to8(box))
-    draw.multiline_text(xy, text, font=font, fill=to8(color), spacing=2)
-    return np.asarray(canvas, dtype=np.float32) / 255.0
-
-
-# --- grids ------------------------------------------------------------------------------------
-
-def grid(panels: Sequence[Sequence[np.ndarray | None]], *, column_labels: Sequence[str] = (),
-         row_labels: Sequence[str] = (), gap: int = 4, font_size: int = 14,
-         title: str = "") -> np.ndarray:
-    """Lay out equally sized panels in rows and columns with labels above and at the left.
-
-    Parameters
-    ----------
-    panels : list of rows of (H, W, 3) float images in [0, 1], or None (left blank)
-    column_labels, row_labels : sequence of str
-        One per column / row (may hold newlines); empty for none.
-    gap : int
-        Pixels between panels.
-    font_size : int
-    title : str
-        One line above everything.
-
-    Returns
-    -------
-    ndarray, shape (H_total, W_total, 3), float32
-        ``H_total = top + rows·H + (rows−1)·gap`` etc., white background.
-    """
-    shapes = {p.shape for row in panels for p in row if p is not None}
-    if len(shapes) != 1:
-        raise ValueError(f"panels must share one shape; got {sorted(shapes)}")
-    h, w, _ = shapes.pop()
-    n_rows, n_cols = len(panels), max(len(r) for r in panels)
-    label_w = max((text_size(t, size=font_size)[0] for t in row_labels), default=0)
-    left = label_w + 2 * gap if label_w else 0
-    label_h = max((text_size(t, size=font_size)[1] for t in column_labels), default=0)
-    title_h = text_size(title, size=font_size + 2)[1] + gap if title else 0
-    top = title_h + (label_h + 2 * gap if label_h else 0)
-    height = top + n_rows * h + (n_rows - 1) * gap + gap
-    width = left + n_cols * w + (n_cols - 1) * gap + gap
-    out = np.empty((height, width, 3), np.float32)
-    out[...] = BACKGROUND
-    for r, row in enumerate(panels):
-        for c, panel in enumerate(row):
-            if panel is None:
-                continue
-            y, x = top + r * (h + gap), left + c * (w + gap)
-            out[y:y + h, x:x + w] = np.clip(panel[..., :3], 0, 1)
-    if title:
-        out = draw_text(out, title, xy=(gap, gap // 2), size=font_size + 2)
-    for c, text in enumerate(column_labels):
-        tw, _ = text_size(text, size=font_size)
-        out = draw_text(out, text, xy=(left + c * (w + gap) + max(0, (w - tw) // 2), title_h + gap),
-                        size=font_size)
-    for r, text in enumerate(row_labels):
-        _, th = text_size(text, size=font_size)
-        out = draw_text(out, text, xy=(gap, top + r * (h + gap) + max(0, (h - th) // 2)),
-                        size=font_size)
-    return out
-
-
-def caption(panel: np.ndarray, text: str, *, size: int = 13, corner: str = "bottom-left"
-            ) -> np.ndarray:
-    """``panel`` with ``text`` in a white box at a corner (FPS / PSNR labels)."""
-    tw, th = text_size(text, size=size)
-    h, w = panel.shape[:2]
-    x = 4 if corner.endswith("left") else max(4, w - tw - 6)
-    y = 4 if corner.startswith("top") else max(4, h - th - 6)
-    return draw_text(panel, text, xy=(x, y), size=size, box=(1.0, 1.0, 1.0))
 
 
 # --- wireframes and insets ------------------------------------------------------------------

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods, scene_choices
@@ -39,6 +39,8 @@ CROPS = {"plants": (0.55, 0.92, 0.05, 0.45), "room": (0.60, 0.95, 0.30, 0.70),
          "trm": (0.55, 0.92, 0.05, 0.45)}
 DEFAULT_CROP = (0.55, 0.92, 0.05, 0.45)
 VARIANT = "glossy"
+#: Measurement table of the rows' scenes (triangle count, substitution); panels as images.
+TABLE = "figure-3.4"
 #: Supersampling of the wireframe pass (thin antialiased lines).
 WIRE_SCALE = 2
 CAPTION_HEADER = ("scene", "panel", "method", "tris", "FPS", "frame ms", "PSNR masked (dB)",
@@ -73,68 +75,80 @@ class Figure34(Figure):
                                   label={"scene": scene, "column": column}))
         return cells
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
-        from prtbench import imageio
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
+        from prtbench import imageio, measurements
 
-        cells = self.cells(profile)
-        runs = _panels.run_cells(cells, profile=profile, results_path=results_path,
+        runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
-        by_key = {(r.cell.label["scene"], r.cell.label["column"]): r for r in runs}
-        rows, row_labels, caption_rows = [], [], []
-        spp = None
-        for scene in self.scenes(profile):
-            panels = []
+        images, scenes = {}, {}
+        for run in runs:
+            scene, column = run.cell.label["scene"], run.cell.label["column"]
+            display = imageio.display(run.image, exposure=run.scene.exposure)
+            h, w = display.shape[:2]
+            edges, _ = _panels.render_wireframe(run.scene, run.scene.trajectory.views[0],
+                                                width=WIRE_SCALE * w, height=WIRE_SCALE * h)
+            images[f"{scene}/{column}/display"] = display
+            images[f"{scene}/{column}/edges"] = edges
+            if column == 0:
+                images[f"{scene}/reference"] = run.reference
+                scenes[scene] = {"scene": scene, "n_triangles": run.scene.n_triangles,
+                                 "substitution": run.scene.substitution or ""}
+        measurements.record(TABLE, list(scenes.values()), results_path=results_path,
+                            run_id=run_id, profile=profile, images=display_panels(images))
+        return {run.run_id: dict(run.cell.label) for run in runs}
+
+    def plot(self, stored, *, reports_dir: Path) -> list[Path]:
+        from . import _plots
+
+        profile = stored.profile
+        frame, images = stored.frame(), stored.images()
+        table = stored.table(TABLE)
+        scenes = _panels.records(table)
+        rows, captions, row_labels, caption_rows = [], [], [], []
+        for info in scenes:
+            scene = info["scene"]
+            panels, texts = [], []
             for column, (label, method, high) in enumerate(COLUMNS):
-                run = by_key[(scene, column)]
-                display = imageio.display(run.image, exposure=run.scene.exposure)
-                h, w = display.shape[:2]
-                view = run.scene.trajectory.views[0]
-                edges, _ = _panels.render_wireframe(run.scene, view, width=WIRE_SCALE * w,
-                                                    height=WIRE_SCALE * h)
-                panel = _panels.wireframe_overlay(display, edges,
-                                                  crop=CROPS.get(scene, DEFAULT_CROP))
-                stored = run.rows
-                fps = _panels.fps(stored)
-                psnr = float(stored["metric_psnr_masked"].mean())
-                panel = _panels.caption(panel, f"{fps:.3g} FPS  {psnr:.1f} dB")
-                panels.append(panel)
-                spp = int(stored["reference_spp"].iloc[0])
+                part = frame[(frame["label_scene"] == scene) & (frame["label_column"] == column)]
+                panels.append(_panels.wireframe_overlay(
+                    images[f"{scene}/{column}/display"], images[f"{scene}/{column}/edges"],
+                    crop=CROPS.get(scene, DEFAULT_CROP)))
+                fps = _panels.fps(part)
+                psnr = float(part["metric_psnr_masked"].mean())
+                texts.append(f"{fps:.3g} FPS  {psnr:.1f} dB")
                 caption_rows.append([
-                    scene, label.replace("\n", " "), method, int(stored["scene_triangles"].iloc[0]),
-                    fps, float(stored["frame_ms"].median()), psnr,
-                    float(stored["metric_ssim_masked"].mean()),
-                    float(stored["metric_flip_masked"].mean()),
-                    float(stored["memory_bytes"].iloc[0]) / 2**20, run.run_id])
-            reference = by_key[(scene, 0)].reference
-            panels.append(_panels.caption(reference, "path reference"))
+                    scene, label.replace("\n", " "), method, int(part["scene_triangles"].iloc[0]),
+                    fps, float(part["frame_ms"].median()), psnr,
+                    float(part["metric_ssim_masked"].mean()),
+                    float(part["metric_flip_masked"].mean()),
+                    float(part["memory_bytes"].iloc[0]) / 2**20, str(part["run_id"].iloc[0])])
+            panels.append(images[f"{scene}/reference"])
+            texts.append("path reference")
             rows.append(panels)
-            first = by_key[(scene, 0)]
-            row_labels.append(f"{scene}\n{first.scene.n_triangles} tris")
-        image = _panels.grid(rows,
-                             column_labels=[c[0] for c in COLUMNS] + [f"Mitsuba path\n{spp} spp"],
-                             row_labels=row_labels, title=self.title + f" ({profile} profile)")
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        imageio.write_png(png, image)
+            captions.append(texts)
+            row_labels.append(f"{scene}\n{info['n_triangles']} tris")
+        spp = int(frame["reference_spp"].iloc[0])
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", rows,
+                                column_labels=[c[0] for c in COLUMNS] + [f"Mitsuba path\n{spp} spp"],
+                                row_labels=row_labels, captions=captions,
+                                title=self.title + f" ({profile} profile)")
         md = _panels.write_caption(reports_dir / f"figure-{self.name}.md",
-                                   self.caption_lines(runs, caption_rows, profile=profile,
-                                                      size=image.shape))
+                                   self.caption_lines(frame, table, caption_rows, profile=profile))
         return [png, md]
 
-    def caption_lines(self, runs, rows, *, profile: str, size) -> list[str]:
-        frame = runs[0].rows
-        renderer = ", ".join(sorted({str(r.rows["renderer"].iloc[0]) for r in runs}))
-        timing = ", ".join(sorted({str(r.rows["timing_source"].iloc[0]) for r in runs}))
+    def caption_lines(self, frame, table, rows, *, profile: str) -> list[str]:
+        scenes = _panels.records(table)
+        renderer = ", ".join(sorted(set(frame["renderer"].astype(str))))
+        timing = ", ".join(sorted(set(frame["timing_source"].astype(str))))
         width, height = int(frame["width"].iloc[0]), int(frame["height"].iloc[0])
-        subs = sorted({r.scene.substitution for r in runs if r.scene.substitution})
+        subs = sorted({s["substitution"] for s in scenes if s["substitution"]})
         lines = [f"# {self.title}", "", f"Source: {self.paper}.", "",
                  f"![figure {self.name}](figure-{self.name}.png)", "",
-                 f"Profile `{profile}`: panels {width}×{height} (image {size[1]}×{size[0]}), "
+                 f"Profile `{profile}`: panels {width}×{height}, "
                  f"first trajectory view, glossy variants. GL renderer: {renderer}; timing: "
                  f"{timing}. On a CPU rasteriser (llvmpipe) FPS are comparable only within this "
-                 "figure.", "",
+                 "figure.", "", provenance_line([frame, table], profile=profile), "",
                  "Columns 1–4 use each scene as built: a two-triangle ground (the room: a "
                  "two-triangle floor). Column 5 subdivides the ground/floor into "
                  f"2·{HIGH_SUBDIVISIONS}² = {2 * HIGH_SUBDIVISIONS**2} triangles and shades per "

@@ -6,15 +6,15 @@ extra texture of interreflected radiance, light and BRDF baked, PRTT §4.2), the
 path references with direct light only and with one bounce. Each render is a runner cell
 (first trajectory view): its FPS and its masked PSNR against its own reference (direct for
 0 bounces, one bounce for 1 bounce) are read from the results store. The 0-bounce render's
-PSNR against the one-bounce reference is computed by the figure from the two stored runs'
-display images (same masked PSNR as the runner), to show what the missing bounce costs.
+PSNR against the one-bounce reference is measured from the two runs' display images (same
+masked PSNR as the runner) and stored, to show what the missing bounce costs.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods
@@ -23,6 +23,8 @@ from .table_3_1 import ensure_texture_methods
 SCENES = (("lion", "diffuse", "Monkey (diffuse)"), ("bust", "glossy", "Roza (glossy)"))
 BOUNCES = (0, 1)
 METHOD = "texture-tpfl"
+#: Measurement table: each run's masked PSNR against the one-bounce reference.
+TABLE = "figure-3.5"
 CAPTION_HEADER = ("scene", "variant", "bounces", "FPS", "frame ms",
                   "PSNR masked vs own reference (dB)", "reference bounces",
                   "PSNR masked vs 1-bounce reference (dB)", "SSIM masked", "FLIP masked",
@@ -41,68 +43,88 @@ class Figure35(Figure):
                      overrides={"bounces": b}, label={"scene": scene, "bounces": b})
                 for scene, variant, _ in SCENES for b in BOUNCES]
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
-        from prtbench import imageio, metrics
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
+        from prtbench import imageio, measurements, metrics
         from prtbench.runner import geometry_mask
 
         runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
         by_key = {(r.cell.label["scene"], r.cell.label["bounces"]): r for r in runs}
-        grid_rows, row_labels, caption_rows = [], [], []
+        images, rows = {}, []
         for scene, variant, paper_scene in SCENES:
             zero, one = by_key[(scene, 0)], by_key[(scene, 1)]
-            one_bounce_reference = one.reference
             view = zero.scene.trajectory.views[0]
-            h, w = one_bounce_reference.shape[:2]
+            h, w = one.reference.shape[:2]
             mask = geometry_mask(zero.scene, view, w, h)
-            panels = []
             for run in (zero, one):
                 display = imageio.display(run.image, exposure=run.scene.exposure)
-                stored = run.rows
-                fps = _panels.fps(stored)
-                own = float(stored["metric_psnr_masked"].mean())
-                vs_one = metrics.compute_metrics(display, one_bounce_reference, mask=mask,
-                                                 names=["psnr"])["psnr_masked"]
-                bounces = run.cell.label["bounces"]
+                images[f"{scene}/{run.cell.label['bounces']}"] = display
+                # What the missing bounce costs: the render against the one-bounce reference.
+                rows.append({"cell_run_id": run.run_id, "scene": scene,
+                             "bounces": run.cell.label["bounces"],
+                             "psnr_masked_vs_one_bounce": metrics.compute_metrics(
+                                 display, one.reference, mask=mask, names=["psnr"])["psnr_masked"],
+                             "substitution": run.scene.substitution or ""})
+            images[f"{scene}/reference-0"] = zero.reference
+            images[f"{scene}/reference-1"] = one.reference
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, images=display_panels(images))
+        return {run.run_id: dict(run.cell.label) for run in runs}
+
+    def plot(self, stored, *, reports_dir: Path) -> list[Path]:
+        from . import _plots
+
+        profile = stored.profile
+        frame, images = stored.frame(), stored.images()
+        table = stored.table(TABLE)
+        extra = {r["cell_run_id"]: r for r in _panels.records(table)}
+        grid_rows, captions, row_labels, caption_rows = [], [], [], []
+        for scene, variant, paper_scene in SCENES:
+            texts, panels = [], []
+            for bounces in BOUNCES:
+                part = frame[(frame["label_scene"] == scene) & (frame["label_bounces"] == bounces)]
+                run_id = str(part["run_id"].iloc[0])
+                fps = _panels.fps(part)
+                own = float(part["metric_psnr_masked"].mean())
+                vs_one = extra[run_id]["psnr_masked_vs_one_bounce"]
                 text = f"{fps:.3g} FPS\nvs 1-bounce ref {vs_one:.1f} dB"
                 if bounces == 0:
                     text += f"\nvs direct ref {own:.1f} dB"
-                panels.append(_panels.caption(display, text))
+                panels.append(images[f"{scene}/{bounces}"])
+                texts.append(text)
                 caption_rows.append([
-                    scene, variant, bounces, fps, float(stored["frame_ms"].median()), own,
-                    bounces, vs_one, float(stored["metric_ssim_masked"].mean()),
-                    float(stored["metric_flip_masked"].mean()),
-                    float(stored["memory_bytes"].iloc[0]) / 2**20, run.run_id])
-            panels.append(_panels.caption(zero.reference, "direct only"))
-            panels.append(_panels.caption(one_bounce_reference, "one bounce"))
+                    scene, variant, bounces, fps, float(part["frame_ms"].median()), own,
+                    bounces, vs_one, float(part["metric_ssim_masked"].mean()),
+                    float(part["metric_flip_masked"].mean()),
+                    float(part["memory_bytes"].iloc[0]) / 2**20, run_id])
+            panels += [images[f"{scene}/reference-0"], images[f"{scene}/reference-1"]]
+            texts += ["direct only", "one bounce"]
             grid_rows.append(panels)
+            captions.append(texts)
             row_labels.append(f"{scene}\n({variant})\nfor {paper_scene}")
-        spp = int(runs[0].rows["reference_spp"].iloc[0])
-        image = _panels.grid(
-            grid_rows, row_labels=row_labels, title=self.title + f" ({profile} profile)",
+        spp = int(frame["reference_spp"].iloc[0])
+        png = _plots.panel_grid(
+            reports_dir / f"figure-{self.name}.png", grid_rows, row_labels=row_labels,
+            captions=captions, title=self.title + f" ({profile} profile)",
             column_labels=["texture TPFL\n0 bounces", "texture TPFL\n1 bounce",
                            f"Mitsuba path, direct\n{spp} spp", f"Mitsuba path, 1 bounce\n{spp} spp"])
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        imageio.write_png(png, image)
-        first = runs[0].rows
-        renderer = ", ".join(sorted({str(r.rows["renderer"].iloc[0]) for r in runs}))
-        timing = ", ".join(sorted({str(r.rows["timing_source"].iloc[0]) for r in runs}))
-        subs = sorted({r.scene.substitution for r in runs if r.scene.substitution})
+        renderer = ", ".join(sorted(set(frame["renderer"].astype(str))))
+        timing = ", ".join(sorted(set(frame["timing_source"].astype(str))))
+        subs = sorted({r["substitution"] for r in extra.values() if r["substitution"]})
         lines = [
             f"# {self.title}", "", f"Source: {self.paper}.", "",
             f"![figure {self.name}](figure-{self.name}.png)", "",
-            f"Profile `{profile}`: panels {int(first['width'].iloc[0])}×"
-            f"{int(first['height'].iloc[0])}, first trajectory view, the scene's default light "
+            f"Profile `{profile}`: panels {int(frame['width'].iloc[0])}×"
+            f"{int(frame['height'].iloc[0])}, first trajectory view, the scene's default light "
             f"(baked into the bounce texture). GL renderer: {renderer}; timing: {timing} (on "
             "llvmpipe FPS are comparable only within this figure).", "",
+            provenance_line([frame, table], profile=profile), "",
             "\"PSNR vs own reference\" is the stored runner metric (0 bounces against the "
             "direct-only reference, 1 bounce against the one-bounce reference). \"PSNR vs "
-            "1-bounce reference\" is computed here from the stored runs' images with the same "
-            "masked PSNR. Memory includes the bounce texture (RGB transferred radiance, "
-            "⌈3n²/4⌉ RGBA layers per texture).", "",
+            "1-bounce reference\" is measured after the runs from their images with the same "
+            "masked PSNR and stored as measurement table `figure-3.5`. Memory includes the "
+            "bounce texture (RGB transferred radiance, ⌈3n²/4⌉ RGBA layers per texture).", "",
             *_panels.markdown_table(CAPTION_HEADER, caption_rows),
         ]
         if subs:

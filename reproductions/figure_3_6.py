@@ -9,7 +9,8 @@ and the difference the normal map makes.
 No path metric for the normal-mapped render: our Mitsuba reference does not apply normal maps,
 so comparing against it would measure the normal map itself as error. That render is therefore
 *not* a runner cell (no result row claims an error for it): the figure renders it directly from
-the cached artifact and times it with the profile's warm-up and frame counts. The render
+the cached artifact, times it with the profile's warm-up and frame counts and stores the timing
+as measurement table ``figure-3.6``. The render
 without a normal map is an ordinary runner cell, so its PSNR against the path reference is in
 the results store.
 """
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Figure
+from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
 
 from . import _panels
 from .table_3_1 import ensure_texture_methods
@@ -31,6 +32,8 @@ METHOD = "texture-tpfl"
 #: Box of the wireframe inset: the floor in front of the table (first view).
 CROP = (0.60, 0.98, 0.55, 0.98)
 WIRE_SCALE = 2
+#: Measurement table of the normal-mapped render's timing; panels as images.
+TABLE = "figure-3.6"
 #: Gain of the difference panel (display-space |with − without|).
 DIFFERENCE_GAIN = 4.0
 
@@ -83,9 +86,10 @@ class Figure36(Figure):
                      scene_params={"normal_mapped_floor": False},
                      label={"normal_map": False})]
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
-        from prtbench import imageio
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
+        from prtbench import imageio, measurements
+        from prtbench.runner import device_description
         from prtbench.scene import get_scene
 
         cells = self.cells(profile)
@@ -99,61 +103,78 @@ class Figure36(Figure):
         mapped = render_direct(method=METHOD, scene=mapped_scene, profile=profile, width=w,
                                height=h, progress=progress)
         exposure = plain.scene.exposure
-        without = imageio.display(plain.image, exposure=exposure)
-        with_map = imageio.display(mapped["image"], exposure=exposure)
         view = mapped_scene.trajectory.views[0]
         edges, _ = _panels.render_wireframe(mapped_scene, view, width=WIRE_SCALE * w,
                                             height=WIRE_SCALE * h)
+        images = {"without": imageio.display(plain.image, exposure=exposure),
+                  "with": imageio.display(mapped["image"], exposure=exposure), "edges": edges}
+        # The normal-mapped render is a timing outside the runner: stored with its renderer.
+        row = {"render": "with normal map", "frame_ms": mapped["frame_ms"],
+               "frame_ms_p95": mapped["frame_ms_p95"], "memory_bytes": mapped["memory_bytes"],
+               "timing_source": mapped["timing_source"],
+               "texture_resolution": mapped["config"]["texture_resolution"],
+               "n_triangles": mapped_scene.n_triangles,
+               "substitution": plain.scene.substitution or ""}
+        measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
+                            profile=profile, renderer=mapped["renderer"],
+                            device=device_description(), images=display_panels(images))
+        return {plain.run_id: dict(plain.cell.label)}
+
+    def plot(self, stored, *, reports_dir: Path) -> list[Path]:
+        from . import _plots
+
+        profile = stored.profile
+        stored_rows, images = stored.frame(), stored.images()
+        table = stored.table(TABLE)
+        mapped = _panels.records(table)[0]
+        without, with_map, edges = images["without"], images["with"], images["edges"]
+        h, w = without.shape[:2]
         edges_1x = edges.reshape(h, WIRE_SCALE, w, WIRE_SCALE).mean(axis=(1, 3))
-        stored = plain.rows
-        plain_fps = _panels.fps(stored)
+        plain_fps = _panels.fps(stored_rows)
         mapped_fps = 1000.0 / mapped["frame_ms"]
-        psnr = float(stored["metric_psnr_masked"].mean())
+        psnr = float(stored_rows["metric_psnr_masked"].mean())
         difference = np.clip(DIFFERENCE_GAIN * np.abs(with_map - without), 0, 1)
         wire = without * 0.45 + 0.55 * edges_1x[..., None] * np.asarray(_panels.WIRE, np.float32)
-        panels = [
-            _panels.caption(without, f"{plain_fps:.3g} FPS\npath PSNR {psnr:.1f} dB"),
-            _panels.caption(_panels.wireframe_overlay(with_map, edges, crop=CROP),
-                            f"{mapped_fps:.3g} FPS\nno path metric"),
-            _panels.caption(wire.astype(np.float32), f"{mapped_scene.n_triangles} tris"),
-            _panels.caption(difference.astype(np.float32), f"|difference| x{DIFFERENCE_GAIN:g}"),
-        ]
-        image = _panels.grid([panels], title=self.title + f" ({profile} profile)",
-                             column_labels=["without normal map", "with normal map",
-                                            "wireframe (2-triangle floor)",
-                                            "effect of the normal map"])
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        imageio.write_png(png, image)
+        panels = [without, _panels.wireframe_overlay(with_map, edges, crop=CROP),
+                  wire.astype(np.float32), difference.astype(np.float32)]
+        captions = [f"{plain_fps:.3g} FPS\npath PSNR {psnr:.1f} dB",
+                    f"{mapped_fps:.3g} FPS\nno path metric", f"{int(mapped['n_triangles'])} tris",
+                    f"|difference| x{DIFFERENCE_GAIN:g}"]
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
+                                captions=[captions], title=self.title + f" ({profile} profile)",
+                                column_labels=["without normal map", "with normal map",
+                                               "wireframe (2-triangle floor)",
+                                               "effect of the normal map"])
         floor_mask = np.abs(with_map - without).max(axis=-1) > 1.0 / 255
         header = ("render", "source", "FPS", "frame ms", "PSNR masked vs path (dB)",
                   "memory MiB", "timing", "GL renderer")
+        run_id = str(stored_rows["run_id"].iloc[0])
         rows = [
-            ["without normal map", f"results store, run {plain.run_id}", plain_fps,
-             float(stored["frame_ms"].median()), psnr,
-             float(stored["memory_bytes"].iloc[0]) / 2**20, str(stored["timing_source"].iloc[0]),
-             str(stored["renderer"].iloc[0])],
-            ["with normal map", "rendered directly by the figure (not stored)", mapped_fps,
+            ["without normal map", f"results store, run {run_id}", plain_fps,
+             float(stored_rows["frame_ms"].median()), psnr,
+             float(stored_rows["memory_bytes"].iloc[0]) / 2**20,
+             str(stored_rows["timing_source"].iloc[0]), str(stored_rows["renderer"].iloc[0])],
+            ["with normal map", f"measurement table `{TABLE}`, run {stored.run_id}", mapped_fps,
              mapped["frame_ms"], "no path metric", mapped["memory_bytes"] / 2**20,
-             mapped["timing_source"], mapped["renderer"]],
+             mapped["timing_source"], str(table["renderer"].iloc[0])],
         ]
         lines = [
             f"# {self.title}", "", f"Source: {self.paper}.", "",
             f"![figure {self.name}](figure-{self.name}.png)", "",
             f"Profile `{profile}`: panels {w}×{h}, first trajectory view of `{SCENE}` "
-            f"({VARIANT}), texture resolution {mapped['config']['texture_resolution']}², "
-            f"{mapped_scene.n_triangles} triangles with or without the normal map (the floor "
-            "stays two triangles).", "",
+            f"({VARIANT}), texture resolution {int(mapped['texture_resolution'])}², "
+            f"{int(mapped['n_triangles'])} triangles with or without the normal map (the floor "
+            "stays two triangles).", "", provenance_line([stored_rows, table], profile=profile), "",
             "**No path metric for the normal-mapped render:** our Mitsuba reference does not "
-            "apply normal maps, so it is not compared with it, and the figure renders it "
-            "outside the runner (no result row). The render without the normal map is a "
-            "runner cell; its masked PSNR against the direct-only path reference is stored.", "",
+            "apply normal maps, so it is not compared with it, and the figure renders and times "
+            "it outside the runner (a measurement row without error metrics). The render without "
+            "the normal map is a runner cell; its masked PSNR against the direct-only path "
+            "reference is stored.", "",
             f"The normal map changes {100 * floor_mask.mean():.1f} % of the pixels by more "
             "than one display level (last panel, |with − without| × "
             f"{DIFFERENCE_GAIN:g}).", "",
             *_panels.markdown_table(header, rows),
-            "", f"Scene substitution: {plain.scene.substitution}.",
+            "", f"Scene substitution: {mapped['substitution']}.",
         ]
         md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, md]

@@ -14,11 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure
+from prtbench.reproduction import Figure, Stored, provenance_line
 
 from . import _panels
 from .table_4_1 import ensure_methods, learnt_overrides
 
+#: Measurement table of the figure's numbers (one row per point; canvases as images).
+TABLE = "figure-4.11"
 #: Canvas size (lat-long, 2:1) of each spherical panel.
 CANVAS = (96, 192)
 #: Rays of the ground-truth transfer at the two points.
@@ -76,12 +78,14 @@ class Figure411(Figure):
     def __init__(self, *, scene: str = "bust", width: int = 128):
         self.scene_name, self.width = scene, width
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
         from methods.learnt.data import heldout_samples
         from methods.learnt.model import LearntModel
+        from prtbench import measurements
         from prtbench.method import METHODS, load_or_precompute
         from prtbench.raytrace import Tracer, offset_origins
+        from prtbench.runner import device_description
         from prtbench.scene import get_scene
         from prtbench.sh import eval_sh
         from prtbench.transfer import compute_transfer
@@ -105,51 +109,72 @@ class Figure411(Figure):
         dirs = canvas_directions()
         basis = eval_sh(dirs.reshape(-1, 3), config.sh_bands)
         tracer = Tracer.from_scene(scene)
-        rows, stats = [], []
-        for i in range(2):
+        held = artifact.meta["heldout_vertices"]
+        rows, images = [], {}
+        for i, name in enumerate(("A", "B")):
             cosine = np.maximum(dirs.reshape(-1, 3) @ normals[i], 0.0)
             origins = offset_origins(np.repeat(points[i:i + 1], len(cosine), 0),
                                      np.repeat(normals[i:i + 1], len(cosine), 0),
                                      diagonal=scene.diagonal())
             visible = ~tracer.occluded(origins.astype(np.float32),
                                        dirs.reshape(-1, 3).astype(np.float32))
-            raw = (visible * cosine).reshape(CANVAS)
             gt = (basis @ truth[i]).reshape(CANVAS)
             mlp = (basis @ learnt[i]).reshape(CANVAS)
-            panels = [colour_map(raw, top=1.0), colour_map(gt, top=1.0), colour_map(mlp, top=1.0),
-                      colour_map(np.abs(gt - mlp), top=0.25)]
-            rows.append(panels)
-            stats.append((points[i], normals[i],
-                          float(np.linalg.norm(learnt[i] - truth[i]) / np.linalg.norm(truth[i])),
-                          float(np.abs(gt - mlp).max())))
-        labels = ["ray-traced V·cos", f"ground truth ({config.sh_bands} bands)",
-                  f"MLP k={config.hidden}, l={config.layers}", "|difference| (x4)"]
-        image = _panels.grid(rows, column_labels=labels, row_labels=["point A", "point B"],
-                             title=self.title)
-        from prtbench import imageio
+            images[f"{name}/raw"] = (visible * cosine).reshape(CANVAS)
+            images[f"{name}/truth"], images[f"{name}/mlp"] = gt, mlp
+            rows.append({"point": name, "position": points[i].astype(float).tolist(),
+                         "normal": normals[i].astype(float).tolist(),
+                         "relative_l2": float(np.linalg.norm(learnt[i] - truth[i])
+                                              / np.linalg.norm(truth[i])),
+                         "max_abs": float(np.abs(gt - mlp).max()),
+                         "scene": scene.name, "substitution": scene.substitution or "as built",
+                         "sh_bands": config.sh_bands, "hidden": config.hidden,
+                         "layers": config.layers, "samples": config.samples,
+                         "rays_per_point": config.rays_per_point, "epochs": config.epochs,
+                         "heldout_points": held["points"], "heldout_relative_rms": held["relative_rms"],
+                         "heldout_dc_relative": held["dc_relative"]})
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, device=device_description(), images=images)
+        return {}
 
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        imageio.write_png(png, image)
+    def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
+        from . import _plots
+
+        profile = stored.profile
+        table = stored.table(TABLE)
+        stats = _panels.records(table)
+        images = stored.images()
+        grid = [[colour_map(images[f"{r['point']}/raw"], top=1.0),
+                 colour_map(images[f"{r['point']}/truth"], top=1.0),
+                 colour_map(images[f"{r['point']}/mlp"], top=1.0),
+                 colour_map(np.abs(images[f"{r['point']}/truth"] - images[f"{r['point']}/mlp"]),
+                            top=0.25)] for r in stats]
+        c = stats[0]
+        labels = ["ray-traced V·cos", f"ground truth ({c['sh_bands']} bands)",
+                  f"MLP k={c['hidden']}, l={c['layers']}", "|difference| (x4)"]
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", grid,
+                                column_labels=labels,
+                                row_labels=[f"point {r['point']}" for r in stats],
+                                title=self.title)
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
-                 f"Profile `{profile}`, scene `{scene.name}` ({scene.substitution or 'as built'}), "
-                 f"learnt k={config.hidden}, l={config.layers}, {config.sh_bands} SH bands, "
-                 f"{config.samples} training points x {config.rays_per_point} rays, "
-                 f"{config.epochs} epochs. Canvases are lat-long (+Y up at the top row), colour "
+                 f"Profile `{profile}`, scene `{c['scene']}` ({c['substitution']}), "
+                 f"learnt k={c['hidden']}, l={c['layers']}, {c['sh_bands']} SH bands, "
+                 f"{c['samples']} training points x {c['rays_per_point']} rays, "
+                 f"{c['epochs']} epochs. Canvases are lat-long (+Y up at the top row), colour "
                  "0 (dark) to 1 (yellow); the difference column is scaled x4.",
                  f"Ground truth: {TRUTH_RAYS} rays per point projected to SH. The points are "
                  "held-out mesh vertices (never training points) of the object with most "
                  "vertices, facing up, chosen where the object shadows about half of the "
-                 "cosine-weighted hemisphere.", ""]
+                 "cosine-weighted hemisphere.", "", provenance_line([table], profile=profile), ""]
         lines += _panels.markdown_table(
             ["point", "position", "normal", "relative L2 error of T",
              "max abs ΔT(ω) on the canvas"],
-            [[name, np.round(p.astype(float), 3).tolist(), np.round(n.astype(float), 3).tolist(),
-              err, worst] for name, (p, n, err, worst) in zip(("A", "B"), stats)])
-        held = artifact.meta["heldout_vertices"]
-        lines += ["", f"Held-out error of the network on {held['points']} vertices: relative "
-                      f"RMS {held['relative_rms']:.4f}, DC {held['dc_relative']:.4f}."]
-        if self.scene_name == "bust":
+            [[r["point"], np.round(np.asarray(r["position"]), 3).tolist(),
+              np.round(np.asarray(r["normal"]), 3).tolist(), r["relative_l2"], r["max_abs"]]
+             for r in stats])
+        lines += ["", f"Held-out error of the network on {c['heldout_points']} vertices: relative "
+                      f"RMS {c['heldout_relative_rms']:.4f}, DC {c['heldout_dc_relative']:.4f}."]
+        if c["scene"] == "bust":
             lines += ["", *(f"Substitution: {s}" for s in self.substitutions)]
         caption = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, caption]

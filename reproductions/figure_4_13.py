@@ -14,13 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line
 
 from . import _panels
 from .table_4_1 import ensure_methods, learnt_overrides
 
 #: Width of the networks compared (the thesis does not state it; table 4.1's smaller one).
 WIDTH = 64
+#: Measurement table of the figure's numbers (one row per network; panels as images).
+TABLE = "figure-4.13"
 ALBEDO = (0.8, 0.8, 0.8)
 ORACLE_RAYS = 1024
 
@@ -71,15 +73,15 @@ class Figure413(Figure):
     def __init__(self, *, scene: str = "plants"):
         self.scene_name = scene
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
-        from prtbench import imageio, metrics
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
+        from prtbench import imageio, measurements, metrics
         from prtbench.config import with_overrides
         from prtbench.lights import get_light
         from prtbench.method import METHODS, load_or_precompute
         from prtbench.profiles import get_profile
         from prtbench.reference import render_reference
-        from prtbench.runner import geometry_mask
+        from prtbench.runner import device_description, geometry_mask
         from prtbench.scene import get_scene
 
         ensure_methods()
@@ -89,13 +91,14 @@ class Figure413(Figure):
         width, height = prof.width, prof.height
         cls = METHODS.get("learnt")
         base = cls.make_config(learnt_overrides(WIDTH, profile), profile=profile)
-        images, facts = {}, {}
+        images, facts, renderers = {}, {}, set()
         for label, frequencies in (("no PE", 0), ("PE", base.pe_frequencies)):
             config = with_overrides(base, {"pe_frequencies": frequencies})
             artifact = load_or_precompute(cls, scene, config, progress=progress)
             renderer = cls.renderer(scene, artifact, config, width=width, height=height)
             try:
                 images[label] = renderer.render(view, light)
+                renderers.add(str(getattr(renderer, "renderer_string", "")))
             finally:
                 renderer.release()
             facts[label] = (frequencies, artifact.meta["heldout_vertices"],
@@ -113,31 +116,56 @@ class Figure413(Figure):
         mask = geometry_mask(scene, view, width, height)
         shown = {k: imageio.display(v, exposure=scene.exposure) for k, v in
                  [*images.items(), ("traced", oracle), ("path", reference)]}
-        psnr = {k: (metrics.compute_metrics(shown[k], shown["traced"], mask=mask)["psnr_masked"],
-                    metrics.compute_metrics(shown[k], shown["path"], mask=mask)["psnr_masked"])
-                for k in images}
-        panels = [_panels.caption(shown[k], f"{psnr[k][0]:.1f} dB vs traced") for k in images]
-        panels += [shown["traced"], shown["path"]]
-        labels = [f"no positional encoding\n(k={WIDTH})",
-                  f"positional encoding F={base.pe_frequencies}\n(k={WIDTH})",
-                  f"traced transfer per pixel\n({base.sh_bands} SH bands)", "path reference"]
-        image = _panels.grid([panels], column_labels=labels, title=self.title)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        imageio.write_png(png, image)
+        rows = []
+        for k in images:
+            rows.append({
+                "network": k, "pe_frequencies": facts[k][0],
+                "psnr_masked_vs_traced": metrics.compute_metrics(
+                    shown[k], shown["traced"], mask=mask)["psnr_masked"],
+                "psnr_masked_vs_path": metrics.compute_metrics(
+                    shown[k], shown["path"], mask=mask)["psnr_masked"],
+                "heldout_vertex_relative_rms": facts[k][1]["relative_rms"],
+                "heldout_surface_relative_rms": facts[k][2]["relative_rms"],
+                "width": width, "height": height, "light": light.name, "hidden": WIDTH,
+                "layers": base.layers, "sh_bands": base.sh_bands, "samples": base.samples,
+                "rays_per_point": base.rays_per_point, "epochs": base.epochs,
+                "reference_spp": prof.reference_spp})
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, renderer=", ".join(sorted(renderers - {""})),
+                            device=device_description(), images=display_panels(shown))
+        return {}
+
+    def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
+        from . import _plots
+
+        profile = stored.profile
+        table = stored.table(TABLE)
+        rows = _panels.records(table)
+        shown = stored.images()
+        c = rows[0]
+        pe = next(r["pe_frequencies"] for r in rows if r["network"] == "PE")
+        panels = [shown[r["network"]] for r in rows] + [shown["traced"], shown["path"]]
+        captions = [f"{r['psnr_masked_vs_traced']:.1f} dB vs traced" for r in rows] + ["", ""]
+        labels = [f"no positional encoding\n(k={c['hidden']})",
+                  f"positional encoding F={pe}\n(k={c['hidden']})",
+                  f"traced transfer per pixel\n({c['sh_bands']} SH bands)", "path reference"]
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
+                                column_labels=labels, captions=[captions], title=self.title)
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
-                 f"Profile `{profile}`, {width}x{height}, first trajectory view, light "
-                 f"`{light.name}`; learnt k={WIDTH}, l={base.layers}, {base.sh_bands} SH bands, "
-                 f"{base.samples} points x {base.rays_per_point} rays, {base.epochs} epochs, GLSL "
+                 f"Profile `{profile}`, {int(c['width'])}x{int(c['height'])}, first trajectory "
+                 f"view, light `{c['light']}`; learnt k={c['hidden']}, l={c['layers']}, "
+                 f"{c['sh_bands']} SH bands, {c['samples']} points x {c['rays_per_point']} rays, "
+                 f"{c['epochs']} epochs, GLSL "
                  "path. 'traced transfer per pixel' shades transfer ray-traced at each visible "
                  f"pixel ({ORACLE_RAYS} rays) with the same bands and shading: the target the "
                  "networks learn, so PSNR against it is the learning error alone. The path "
-                 "reference adds SH truncation.", ""]
+                 "reference adds SH truncation.", "", provenance_line([table], profile=profile), ""]
         lines += _panels.markdown_table(
             ["network", "PE frequencies", "PSNR masked vs traced (dB)",
              "PSNR masked vs path (dB)", "held-out vertex rel. RMS", "held-out surface rel. RMS"],
-            [[k, facts[k][0], psnr[k][0], psnr[k][1], facts[k][1]["relative_rms"],
-              facts[k][2]["relative_rms"]] for k in images])
+            [[r["network"], r["pe_frequencies"], r["psnr_masked_vs_traced"],
+              r["psnr_masked_vs_path"], r["heldout_vertex_relative_rms"],
+              r["heldout_surface_relative_rms"]] for r in rows])
         for s in self.substitutions:
             lines.append(f"\nSubstitution: {s}")
         caption = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)

@@ -12,17 +12,18 @@ away or shadowed): the leak.
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure
+from prtbench.cache import atomic_path
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "lion"
 SCENE_PARAMS = {"ground_subdivisions": 48}  # fair to vertex PRT: its ground can hold a shadow
 LIGHT = "sun"
+#: Measurement table of the figure's numbers (one row per image).
+TABLE = "figure-ddprt-12"
 SETTINGS = {
     "smoke": {"ours": {"configurations": 6, "paths_per_texel": 4, "basis": 4}, "vertex": {},
               "image": (64, 48)},
@@ -68,21 +69,21 @@ class FigureDdprt12(Figure):
         "which the Mitsuba reference renders as a map.",
     )
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
         import methods.data_driven  # noqa: F401 - registers the method
         import methods.vertex  # noqa: F401
-        from methods.data_driven import panels
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import metrics
-        from prtbench.cache import atomic_path
+        from prtbench import measurements, metrics
         from prtbench.imageio import display
         from prtbench.lights import SUN_DIRECTION, get_light
         from prtbench.method import METHODS, load_or_precompute
         from prtbench.profiles import get_profile
         from prtbench.reference import render_reference
-        from prtbench.runner import geometry_mask
+        from prtbench.runner import device_description, geometry_mask
         from prtbench.scene import get_scene
+
+        from . import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE, **SCENE_PARAMS).with_views(1)
@@ -95,14 +96,15 @@ class FigureDdprt12(Figure):
         vertex_cls = METHODS.get("vertex")
         vertex_cfg = vertex_cls.make_config({**settings["vertex"], "bounces": ours_cfg.bounces},
                                             profile=profile)
-        images = {}
+        renders, renderer_names = {}, set()
         for label, cls, cfg in (("data-driven", DataDrivenPRT, ours_cfg),
                                 (f"vertex PRT ({vertex_cfg.sh_bands} bands)", vertex_cls, vertex_cfg)):
             cls.validate(scene, cfg)
             artifact = load_or_precompute(cls, scene, cfg, progress=progress)
             renderer = cls.renderer(scene, artifact, cfg, width=width, height=height)
             try:
-                images[label] = renderer.render(view, light)
+                renders[label] = renderer.render(view, light)
+                renderer_names.add(str(getattr(renderer, "renderer_string", "")))
             finally:
                 renderer.release()
         ref = render_reference(scene, light, view, width=width, height=height, spp=spp,
@@ -110,42 +112,64 @@ class FigureDdprt12(Figure):
         mask = geometry_mask(scene, view, width, height)
         unlit = unlit_mask(scene, view, width, height, np.asarray(SUN_DIRECTION))
         ref_d = display(ref.image, exposure=scene.exposure)
-        rows = [["Mitsuba reference", float("nan"), float("nan"),
-                 float(ref.image[unlit].mean()), 1.0]]
-        tiles, labels = [ref_d], [f"Mitsuba ({spp} spp, {ours_cfg.bounces} bounce)"]
-        errors, error_labels = [np.zeros_like(ref_d)], ["|error| x4"]
-        for label, image in images.items():
+        ref_unlit = float(ref.image[unlit].mean())
+        common = {"width": width, "height": height, "reference_spp": spp,
+                  "reference_noise_display": ref.noise_rmse_display, "bounces": ours_cfg.bounces,
+                  "unlit_pixels": int(unlit.sum()), "geometry_pixels": int(mask.sum()),
+                  "vertex_sh_bands": vertex_cfg.sh_bands,
+                  "vertex_rays_per_point": vertex_cfg.rays_per_point,
+                  "vertex_bounces": vertex_cfg.bounces}
+        rows = [{"image": "Mitsuba reference", "psnr_masked_db": None, "flip_masked": None,
+                 "mean_radiance_unlit": ref_unlit, "unlit_vs_reference": 1.0, **common}]
+        images = {f"Mitsuba ({spp} spp, {ours_cfg.bounces} bounce)": ref_d}
+        errors = {"|error| x4": np.zeros_like(ref_d)}
+        for label, image in renders.items():
             d = display(image, exposure=scene.exposure)
             values = metrics.compute_metrics(d, ref_d, mask=mask)
             leak = float(image[unlit].mean())
-            rows.append([label, values["psnr_masked"], values["flip_masked"], leak,
-                         leak / float(ref.image[unlit].mean())])
-            tiles.append(d)
-            labels.append(label)
-            errors.append(panels.error_image(image, ref.image, scale=4.0 * scene.exposure))
-            error_labels.append(f"{label}: |error| x4")
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        panels.write_png(png, panels.grid(tiles + errors, labels + error_labels, columns=3))
+            rows.append({"image": label, "psnr_masked_db": values["psnr_masked"],
+                         "flip_masked": values["flip_masked"], "mean_radiance_unlit": leak,
+                         "unlit_vs_reference": leak / ref_unlit, **common})
+            images[label] = d
+            errors[f"{label}: |error| x4"] = _panels.error_image(image, ref.image,
+                                                                 scale=4.0 * scene.exposure)
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, renderer=", ".join(sorted(renderer_names - {""})),
+                            device=device_description(),
+                            images=display_panels({**images, **errors}))
+        return {}
+
+    def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
+        from . import _panels, _plots
+
+        profile = stored.profile
+        settings = SETTINGS.get(profile, SETTINGS["quick"])
+        table = stored.table(TABLE)
+        records = _panels.records(table)
+        images = stored.images()
+        keys = list(images)
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png",
+                                [[images[k] for k in keys[i:i + 3]] for i in range(0, len(keys), 3)],
+                                titles=[keys[i:i + 3] for i in range(0, len(keys), 3)])
         header = ["image", "psnr_masked_db", "flip_masked", "mean_radiance_unlit",
                   "unlit_vs_reference"]
-        csv_path = reports_dir / f"figure-{self.name}.csv"
-        buf = io.StringIO()
-        csv.writer(buf).writerows([header, *rows])
-        with atomic_path(csv_path) as tmp:
-            tmp.write_text(buf.getvalue())
+        rows = [[r[h] for h in header] for r in records]
+        csv_path = write_csv(reports_dir / f"figure-{self.name}.csv", header, rows)
+        first = records[0]
         md = reports_dir / f"figure-{self.name}.md"
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
                  f"Profile `{profile}`, scene `{SCENE}` {SCENE_PARAMS}, light `{LIGHT}`, view 0, "
-                 f"{width}x{height}, direct + {ours_cfg.bounces} indirect bounce. Reference kind: "
-                 f"`path` (Mitsuba 3, {spp} spp, display noise {ref.noise_rmse_display:.4f}). "
-                 f"data-driven: {settings['ours'] or 'profile defaults'} (family env-rotations "
-                 f"of `{LIGHT}`); vertex: {vertex_cfg.sh_bands} SH bands, "
-                 f"{vertex_cfg.rays_per_point} rays, {vertex_cfg.bounces} bounce.", "",
-                 f"'Unlit' pixels ({int(unlit.sum())} of {int(mask.sum())} geometry pixels) face "
-                 "away from the sun or are shadowed; their mean linear radiance above the "
-                 "reference's is light leaking where the sun cannot reach.", "",
+                 f"{int(first['width'])}x{int(first['height'])}, direct + {int(first['bounces'])} "
+                 f"indirect bounce. Reference kind: `path` (Mitsuba 3, "
+                 f"{int(first['reference_spp'])} spp, display noise "
+                 f"{first['reference_noise_display']:.4f}). data-driven: "
+                 f"{settings['ours'] or 'profile defaults'} (family env-rotations of `{LIGHT}`); "
+                 f"vertex: {int(first['vertex_sh_bands'])} SH bands, "
+                 f"{int(first['vertex_rays_per_point'])} rays, {int(first['vertex_bounces'])} bounce.",
+                 "", provenance_line([table], profile=profile), "",
+                 f"'Unlit' pixels ({int(first['unlit_pixels'])} of {int(first['geometry_pixels'])} "
+                 "geometry pixels) face away from the sun or are shadowed; their mean linear "
+                 "radiance above the reference's is light leaking where the sun cannot reach.", "",
                  "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         lines += ["| " + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row)
                   + " |" for row in rows]

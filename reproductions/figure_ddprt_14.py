@@ -19,18 +19,19 @@ seeds) for the unrotated sky from view 0.
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure
+from prtbench.cache import atomic_path
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 COUNTS = (1, 2, 4, 8, 16, 32, 64)
 RIDGES = (1e-3, 1e-2)
 FAMILIES = ("env-rotations", "spot")
 SCENE = "cornell"
+#: Measurement table of the figure's numbers (one row per space, family, ridge, basis count).
+TABLE = "figure-ddprt-14"
 
 #: Per profile: counts, method overrides, held-out lights, reference path factor, image size.
 SETTINGS = {
@@ -69,85 +70,108 @@ class FigureDdprt14(Figure):
         "(not public; the paper does not name the scene of Fig. 14).",
     )
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
         import methods.data_driven  # noqa: F401 - registers the method
-        from methods.data_driven import panels
-        from methods.data_driven.evaluation import (held_out, image_study, lightmap_study,
-                                                    reference_lightmaps, with_knobs)
+        from methods.data_driven.dataset import build_dataset
+        from methods.data_driven.evaluation import image_study, lightmap_study, reference_lightmaps
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench.cache import atomic_path
+        from prtbench import gl, measurements
+        from prtbench.imageio import display
         from prtbench.lights import get_light
         from prtbench.profiles import get_profile
+        from prtbench.runner import device_description
         from prtbench.scene import get_scene
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         counts = settings["counts"]
         scene = get_scene(SCENE)
-        rows, series, checks, notes = [], {}, {}, []
+        rows = []
         for family in FAMILIES:
             for ridge in RIDGES:
                 config = DataDrivenPRT.make_config({**settings["overrides"], "light_family": family,
                                                     "ridge": ridge}, profile=profile)
                 study = lightmap_study(scene, config, counts, test_lights=settings["test_lights"],
                                        reference_factor=settings["factor"], progress=progress)
-                rms = study.reference_rms
-                for n, a, b in zip(counts, study.prediction_rmse, study.projection_rmse):
-                    rows.append(["lightmap", family, ridge, n, a, b, a / b, rms,
-                                 study.reference_noise_rmse])
-                series[f"{family} ours l={ridge:g}"] = (counts, [a / rms for a in study.prediction_rmse], False)
-                if ridge == RIDGES[0]:
-                    series[f"{family} projection"] = (counts, [b / rms for b in study.projection_rmse], True)
-                checks[(family, ridge)] = criteria(counts, study.prediction_rmse, study.projection_rmse)
+                rows += [{"space": "lightmap", "family": family, "ridge": ridge, "basis": n,
+                          "ours_rmse": a, "projection_rmse": b,
+                          "reference_rms": study.reference_rms,
+                          "reference_noise_rmse": study.reference_noise_rmse, "reference_spp": None}
+                         for n, a, b in zip(counts, study.prediction_rmse, study.projection_rmse)]
         # Image space: the unrotated sky, the default family, stronger ridge.
         width, height = settings["image"]
         view = scene.trajectory.views[0]
         spp = get_profile(profile).reference_spp
         sky = get_light(scene.default_light)
-        image_rows = []
-        panels_images, labels = [], []
+        images = {}
+        gain = 3.0 * scene.exposure
         for n in settings["image_counts"]:
             config = DataDrivenPRT.make_config({**settings["overrides"], "ridge": RIDGES[-1],
                                                 "basis": n}, profile=profile)
-            from methods.data_driven.dataset import build_dataset
-
             dataset = build_dataset(scene, config, progress=progress)
             a, b = reference_lightmaps(scene, config, dataset, [sky], factor=settings["factor"])
             study = image_study(scene, config, sky, view=view, width=width, height=height, spp=spp,
                                 reference_lightmap=0.5 * (a[0] + b[0]), progress=progress)
-            image_rows.append(["image", "env-rotations", RIDGES[-1], n, study.ours_rmse,
-                               study.projection_rmse, study.ours_rmse / study.projection_rmse,
-                               float(np.sqrt(np.mean(study.reference[study.mask] ** 2))),
-                               study.reference_noise_rmse])
-            gain = 3.0 * scene.exposure
-            from prtbench.imageio import display
+            rows.append({"space": "image", "family": "env-rotations", "ridge": RIDGES[-1],
+                         "basis": n, "ours_rmse": study.ours_rmse,
+                         "projection_rmse": study.projection_rmse,
+                         "reference_rms": float(np.sqrt(np.mean(study.reference[study.mask] ** 2))),
+                         "reference_noise_rmse": study.reference_noise_rmse, "reference_spp": spp})
+            images[f"ours n={n}"] = display(study.ours, exposure=gain)
+            images[f"projection n={n}"] = display(study.projection, exposure=gain)
+        images[f"Mitsuba indirect ({spp} spp)"] = display(study.reference, exposure=gain)
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, renderer=gl.renderer_string(),  # image_study's GL
+                            device=device_description(), images=display_panels(images))
+        return {}
 
-            panels_images += [display(study.ours, exposure=gain), display(study.projection, exposure=gain)]
-            labels += [f"ours n={n}", f"projection n={n}"]
-        panels_images.append(display(study.reference, exposure=gain))
-        labels.append(f"Mitsuba indirect ({spp} spp)")
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        plot = panels.line_plot(series, title="cornell: held-out lights, lightmap space",
-                                xlabel="basis elements n (mean included)",
-                                ylabel="RMSE / RMS(reference)")
-        png = reports_dir / f"figure-{self.name}.png"
-        panels.write_png(png, plot)
-        images_png = reports_dir / f"figure-{self.name}-images.png"
-        panels.write_png(images_png, panels.grid(panels_images, labels, columns=2))
+    def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
+        from . import _panels, _plots
+
+        profile = stored.profile
+        settings = SETTINGS.get(profile, SETTINGS["quick"])
+        table = stored.table(TABLE)
+        records = _panels.records(table)
         header = ["space", "family", "ridge", "basis", "ours_rmse", "projection_rmse", "ratio",
                   "reference_rms", "reference_noise_rmse"]
-        csv_path = reports_dir / f"figure-{self.name}.csv"
-        buf = io.StringIO()
-        csv.writer(buf).writerows([header, *rows, *image_rows])
-        with atomic_path(csv_path) as tmp:
-            tmp.write_text(buf.getvalue())
+        rows = [[r["space"], r["family"], r["ridge"], r["basis"], r["ours_rmse"],
+                 r["projection_rmse"], r["ours_rmse"] / r["projection_rmse"], r["reference_rms"],
+                 r["reference_noise_rmse"]] for r in records]
+        lightmap = [r for r in records if r["space"] == "lightmap"]
+        series, checks = {}, {}
+        for family in FAMILIES:
+            for ridge in RIDGES:
+                part = [r for r in lightmap if r["family"] == family and r["ridge"] == ridge]
+                if not part:
+                    continue
+                counts = [r["basis"] for r in part]
+                rms = part[0]["reference_rms"]
+                series[f"{family} ours λ={ridge:g}"] = (
+                    counts, [r["ours_rmse"] / rms for r in part], False)
+                if ridge == RIDGES[0]:
+                    series[f"{family} projection"] = (
+                        counts, [r["projection_rmse"] / rms for r in part], True)
+                checks[(family, ridge)] = criteria(counts, [r["ours_rmse"] for r in part],
+                                                   [r["projection_rmse"] for r in part])
+        png = _plots.line_plot(reports_dir / f"figure-{self.name}.png", series,
+                               title=f"{SCENE}: held-out lights, lightmap space",
+                               xlabel="basis elements n (mean included)",
+                               ylabel="RMSE / RMS(reference)")
+        images = stored.images()
+        keys = list(images)
+        panels = [[images[k] for k in keys[i:i + 2]] for i in range(0, len(keys), 2)]
+        titles = [keys[i:i + 2] for i in range(0, len(keys), 2)]
+        images_png = _plots.panel_grid(reports_dir / f"figure-{self.name}-images.png", panels,
+                                       titles=titles)
+        csv_path = write_csv(reports_dir / f"figure-{self.name}.csv", header, rows)
+        spp = next((int(r["reference_spp"]) for r in records if r["space"] == "image"), None)
         md = reports_dir / f"figure-{self.name}.md"
         with atomic_path(md) as tmp:
-            tmp.write_text(self.caption(profile, rows, image_rows, checks, settings, spp))
+            tmp.write_text(self.caption(profile, rows, checks, settings, spp,
+                                        provenance_line([table], profile=profile)))
         return [png, images_png, csv_path, md]
 
-    def caption(self, profile, rows, image_rows, checks, settings, spp) -> str:
+    def caption(self, profile, rows, checks, settings, spp, provenance: str) -> str:
         def fmt(v):
             return f"{v:.4g}" if isinstance(v, float) else str(v)
 
@@ -158,7 +182,7 @@ class FigureDdprt14(Figure):
                  "Reference kind: `path` (our embree bake, shown equal to Mitsuba in "
                  "tests/methods/test_data_driven.py, for the lightmap rows; Mitsuba "
                  f"indirect-only, {spp} spp, for the image rows). Indirect light only, linear "
-                 "radiance.", "",
+                 "radiance.", "", provenance, "",
                  "`figure-ddprt-14.png`: RMSE relative to the reference's RMS (plain: ours, "
                  "dashed: projection of the reference onto the basis). "
                  "`figure-ddprt-14-images.png`: indirect images (×3 exposure).", "",
@@ -172,7 +196,7 @@ class FigureDdprt14(Figure):
         header = ["space", "family", "λ", "n", "ours RMSE", "projection RMSE", "ratio",
                   "reference RMS", "reference noise"]
         lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in [*rows, *image_rows]]
+        lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
         lines += ["", "The paper gives this figure as a plot without numbers, so there is no "
                   "paper column. Image-space rows include the lightmap's resolution error, which "
                   "the projection shares (both are rendered through the same GL shading pass)."]

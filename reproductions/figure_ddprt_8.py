@@ -9,15 +9,16 @@ projection of the path-traced lightmap onto the basis (what the basis could repr
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure
+from prtbench.cache import atomic_path
+from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "room"
+#: Measurement table of the figure's numbers (one row per light).
+TABLE = "figure-ddprt-8"
 SETTINGS = {
     "smoke": {"overrides": {"configurations": 6, "paths_per_texel": 4, "basis": 4,
                             "lightmap_resolution": 256}, "image": (64, 48)},
@@ -40,17 +41,19 @@ class FigureDdprt8(Figure):
         "lights close to the surface).",
     )
 
-    def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
-             progress: bool = True) -> list[Path]:
+    def measure(self, *, profile: str, results_path: Path | None, run_id: str,
+                progress: bool = True) -> dict[str, dict]:
         import methods.data_driven  # noqa: F401 - registers the method
-        from methods.data_driven import panels
         from methods.data_driven.evaluation import held_out, image_study
         from methods.data_driven.lights import DirectionalLight
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench.cache import atomic_path
+        from prtbench import gl, measurements
         from prtbench.imageio import display
         from prtbench.profiles import get_profile
+        from prtbench.runner import device_description
         from prtbench.scene import get_scene
+
+        from . import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE)
@@ -62,7 +65,7 @@ class FigureDdprt8(Figure):
         view = scene.trajectory.views[0]
         cases = [("in distribution: held-out spot", held_out(scene, config, 1)[0]),
                  ("out of distribution: directional", DirectionalLight(**DIRECTIONAL, name="sun"))]
-        images, labels, rows = [], [], []
+        rows, images = [], {}
         exposure = scene.exposure
         for title, light in cases:
             study = image_study(scene, config, light, view=view, width=width, height=height,
@@ -71,35 +74,55 @@ class FigureDdprt8(Figure):
             ref_total = study.direct_reference + study.reference
             ref_rms = float(np.sqrt(np.mean(study.reference[study.mask] ** 2)))
             total_rmse = float(np.sqrt(np.mean((ours_total - ref_total)[study.mask] ** 2)))
-            rows.append([title, light.name, study.ours_rmse, study.ours_rmse / ref_rms,
-                         study.projection_rmse, study.projection_rmse / ref_rms, total_rmse,
-                         study.reference_noise_rmse])
+            rows.append({"case": title, "light": light.name, "indirect_rmse": study.ours_rmse,
+                         "indirect_rmse_relative": study.ours_rmse / ref_rms,
+                         "projection_rmse": study.projection_rmse,
+                         "projection_rmse_relative": study.projection_rmse / ref_rms,
+                         "total_rmse": total_rmse,
+                         "reference_noise_rmse": study.reference_noise_rmse,
+                         "width": width, "height": height, "reference_spp": spp,
+                         "bounces": config.bounces})
             gain = exposure * 4.0
-            images += [display(ours_total, exposure=exposure), display(ref_total, exposure=exposure),
-                       display(study.ours, exposure=gain), display(study.reference, exposure=gain),
-                       panels.error_image(study.ours, study.reference, scale=gain)]
             short = "spot" if "spot" in title else "directional"
-            labels += [f"{short}: ours", f"{short}: Mitsuba", f"{short}: ours indirect x4",
-                       f"{short}: Mitsuba indirect x4", f"{short}: |indirect error| x4"]
-        reports_dir = Path(reports_dir)
-        reports_dir.mkdir(parents=True, exist_ok=True)
-        png = reports_dir / f"figure-{self.name}.png"
-        panels.write_png(png, panels.grid(images, labels, columns=5))
+            images.update({
+                f"{short}: ours": display(ours_total, exposure=exposure),
+                f"{short}: Mitsuba": display(ref_total, exposure=exposure),
+                f"{short}: ours indirect x4": display(study.ours, exposure=gain),
+                f"{short}: Mitsuba indirect x4": display(study.reference, exposure=gain),
+                f"{short}: |indirect error| x4": _panels.error_image(study.ours, study.reference,
+                                                                     scale=gain)})
+        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+                            profile=profile, renderer=gl.renderer_string(),  # image_study's GL
+                            device=device_description(), images=display_panels(images))
+        return {}
+
+    def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
+        from . import _panels, _plots
+
+        profile = stored.profile
+        settings = SETTINGS.get(profile, SETTINGS["quick"])
+        table = stored.table(TABLE)
+        records = _panels.records(table)
+        images = stored.images()
+        keys = list(images)
+        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png",
+                                [[images[k] for k in keys[i:i + 5]] for i in range(0, len(keys), 5)],
+                                titles=[keys[i:i + 5] for i in range(0, len(keys), 5)])
         header = ["case", "light", "indirect_rmse", "indirect_rmse_relative", "projection_rmse",
                   "projection_rmse_relative", "total_rmse", "reference_noise_rmse"]
-        csv_path = reports_dir / f"figure-{self.name}.csv"
-        buf = io.StringIO()
-        csv.writer(buf).writerows([header, *rows])
-        with atomic_path(csv_path) as tmp:
-            tmp.write_text(buf.getvalue())
+        rows = [[r[h] for h in header] for r in records]
+        csv_path = write_csv(reports_dir / f"figure-{self.name}.csv", header, rows)
+        first = records[0]
+        width, height, spp = int(first["width"]), int(first["height"]), int(first["reference_spp"])
         md = reports_dir / f"figure-{self.name}.md"
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
                  f"Profile `{profile}`, scene `{SCENE}` view 0, {width}x{height}; dataset: "
                  f"`spot` family, overrides {settings['overrides']}. Reference kind: `path` "
-                 f"(Mitsuba 3, {spp} spp; indirect = max_depth {config.bounces + 2} minus "
+                 f"(Mitsuba 3, {spp} spp; indirect = max_depth {int(first['bounces']) + 2} minus "
                  "max_depth 2 with shared seeds). RMSE on linear radiance over geometry pixels; "
                  "'relative' divides by the reference indirect's RMS. The projection row is the "
                  "path-traced lightmap projected onto the same basis and drawn by the same shader.",
+                 "", provenance_line([table], profile=profile),
                  "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         lines += ["| " + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row)
                   + " |" for row in rows]

@@ -102,6 +102,12 @@ def transfer_texture_bytes(resolution: int, bands: int, *, sets: int = 1,
     return size + (tpfl_bytes(bands) if with_tpfl else 0)
 
 
+#: Measurement table holding the GL limit the sweep ran under (one row per report run).
+GL_TABLE = "table-3.2-gl"
+#: Measurement table of each run's scene size (``cell_run_id``, vertices, objects).
+SCENE_TABLE = "table-3.2-scenes"
+
+
 def gl_storage_block_limit() -> int:
     """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of this machine's GL context (0 if unknown)."""
     from prtbench import gl
@@ -109,11 +115,21 @@ def gl_storage_block_limit() -> int:
     return int(gl.create_context().info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
 
 
-def sloan_refusal(scene, config) -> str | None:
+def stored_block_limit(frame) -> int:
+    """The GL shader-storage block limit stored with the sweep (:data:`GL_TABLE`), 0 if unknown."""
+    rows = frame.attrs.get(GL_TABLE)
+    if rows is None or not len(rows):
+        return 0
+    value = rows["gl_max_shader_storage_block_size"].iloc[0]
+    return int(value) if value == value else 0
+
+
+def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
     """Why ``sloan-matrix`` cannot run on ``scene`` here (None if it can).
 
-    Checks the method's own ``max_bytes`` knob (its validate) and this GL's shader-storage
-    block limit, which its renderer would hit only after the (long) precompute.
+    Checks the method's own ``max_bytes`` knob (its validate) and the GL shader-storage block
+    limit (``limit``; default this machine's), which its renderer would hit only after the
+    (long) precompute.
     """
     from prtbench.errors import InvalidInputError
     from prtbench.method import METHODS
@@ -123,7 +139,7 @@ def sloan_refusal(scene, config) -> str | None:
     except InvalidInputError as exc:
         return f"refused by the method: {exc}"
     size = sloan_vertex_bytes(scene.n_vertices, config.sh_bands)
-    limit = gl_storage_block_limit()
+    limit = gl_storage_block_limit() if limit is None else limit
     if limit and size > limit:
         return (f"{size / 2**20:.0f} MiB of matrices exceed this GL's shader storage block limit "
                 f"(GL_MAX_SHADER_STORAGE_BLOCK_SIZE = {limit / 2**20:.0f} MiB)")
@@ -155,9 +171,10 @@ def _scene_of(row):
     return get_scene(row["scene"], variant=row["scene_variant"], **params)
 
 
-def paper_scene_notes(profile: str, measured: set[str]) -> list[str]:
+def paper_scene_notes(profile: str, measured: set[str], *, limit: int) -> list[str]:
     """Closed forms of the vertex schemes on the paper profile's scenes, where this profile
-    measured a lighter stand-in (e.g. ``dragon-lo`` for ``dragon`` in ``quick``)."""
+    measured a lighter stand-in (e.g. ``dragon-lo`` for ``dragon`` in ``quick``); ``limit`` is
+    the stored GL shader-storage block limit."""
     from prtbench.errors import AssetMissingError
     from prtbench.scene import get_scene
 
@@ -173,7 +190,6 @@ def paper_scene_notes(profile: str, measured: set[str]) -> list[str]:
         except AssetMissingError:
             continue
         v = scene.n_vertices
-        limit = gl_storage_block_limit()
         sloan = sloan_vertex_bytes(v, 5)
         notes.append(
             f"{choice.paper} at the paper profile's scale (`{full.scene}`, {v} vertices, "
@@ -218,6 +234,22 @@ class Table32(Reproduction):
                                   label={"paper_scene": choice.paper, "scheme": key}))
         return cells
 
+    measurement_tables = (GL_TABLE, SCENE_TABLE)
+
+    def measure_rows(self, frame, *, profile: str) -> dict[str, list[dict]]:
+        """This GL's shader-storage block limit, which the notes and refusals quote, and the
+        vertex and object counts of each run's scene, which the closed forms use."""
+        from prtbench import gl
+
+        scenes = []
+        for run_id, run in frame.groupby("run_id", sort=False):
+            scene = _scene_of(run.iloc[0])
+            scenes.append({"cell_run_id": run_id, "scene_vertices": scene.n_vertices,
+                           "scene_objects": len(scene.objects)})
+        return {GL_TABLE: [{"gl_max_shader_storage_block_size": gl_storage_block_limit(),
+                            "gl_renderer": gl.renderer_string()}],
+                SCENE_TABLE: scenes}
+
     def markdown(self, header, rows, *, profile: str, frame) -> str:
         measured = set(frame["scene"]) if len(frame) else set()
         self.substitutions = tuple(substitution_lines(profile, measured))
@@ -237,9 +269,9 @@ class Table32(Reproduction):
             "5 bands): closed form only, at our texture's resolution.",
             "Rows without a measurement could not run on this machine; the reason is in the "
             f"\"status\" column (this GL's shader storage blocks hold at most "
-            f"{gl_storage_block_limit() / 2**20:.0f} MiB).",
+            f"{stored_block_limit(frame) / 2**20:.0f} MiB, measured with the sweep).",
             *choice_notes(profile, measured),
-            *paper_scene_notes(profile, measured),
+            *paper_scene_notes(profile, measured, limit=stored_block_limit(frame)),
         )
         return super().markdown(header, rows, profile=profile, frame=frame)
 
@@ -260,14 +292,14 @@ class Table32(Reproduction):
                                   key=lambda p: order.index(p) if p in order else 99):
             part = frame[frame["label_paper_scene"] == paper_scene]
             first = part.iloc[0]
-            scene = _scene_of(first)
-            vertices = scene.n_vertices
+            scene = _scene_of(first)  # for the Sloan refusal (the method's validate)
+            vertices = int(first["scene_vertices"])
             by_scheme = {k: p for k, p in part.groupby("label_scheme")}
             texture = by_scheme.get("ours")
             tex_cfg = (json.loads(texture["config"].iloc[0]) if texture is not None
                        else _default_config("texture-tpfl", profile, paper_scene))
             resolution = int(tex_cfg["texture_resolution"])
-            sets = len(scene.objects) if tex_cfg.get("texture_sets") else 1
+            sets = int(first["scene_objects"]) if tex_cfg.get("texture_sets") else 1
             for key, label, method in SCHEMES:
                 run = by_scheme.get(key)
                 cfg = (json.loads(run["config"].iloc[0]) if run is not None
@@ -281,8 +313,8 @@ class Table32(Reproduction):
                     formula = f"V·n⁴·4 (V={vertices}, n={bands})"
                     if run is None:
                         config = METHODS.get(method).make_config(profile=profile)
-                        status = "closed form only: " + (sloan_refusal(scene, config)
-                                                         or "not run")
+                        status = "closed form only: " + (sloan_refusal(
+                            scene, config, limit=stored_block_limit(frame)) or "not run")
                 elif key == "ng":
                     bands = int(cfg["sh_bands"])
                     closed = ng_vertex_bytes(vertices, bands)

@@ -10,11 +10,11 @@ Leak error (room only). The masked MAE of the display images restricted to the p
 light leaks through thin geometry: primary hits on the walls (``wall_*`` objects: probes behind
 a 10 cm wall see the other side) and on the floor or rug under the table (probes above the
 table top see the sky). The masks come from the geometry (:func:`leak_masks`). The runner's
-rows carry only whole-geometry metrics, so the formatter recomputes this one from what the
-stored rows identify — method, config, scene parameters, light, camera, resolution and
-reference spp — by re-rendering from the cached artifact and loading the cached reference
-(the same cache entries the runner used; recomputed only if the cache was cleared). It is a
-deterministic function of those stored fields, not a new measurement of anything else.
+rows carry only whole-geometry metrics, so once the sweep is stored the table measures this one
+(:meth:`VolumeTable.measure_rows`) from what the stored rows identify — method, config, scene
+parameters, light, camera, resolution and reference spp — by re-rendering from the cached
+artifact and loading the cached reference (the same cache entries the runner used), and stores
+it as measurement table ``table-volume-leak``; the formatter reads it from the store only.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ BASELINES = ("vertex", "texture-tpfl")
 WALL_PREFIX = "wall"
 UNDER_TABLE_RECEIVERS = ("floor", "rug")
 TABLE_OBJECT = "table"
+#: Measurement table of the leak MAE per swept run (``cell_run_id``, ``leak_mae``).
+LEAK_TABLE = "table-volume-leak"
 
 
 def _registered_methods() -> list[str]:
@@ -158,8 +160,9 @@ class VolumeTable(Reproduction):
             "against the Mitsuba 3 direct-only path reference (reference kind `path`), averaged "
             "over the profile's views.",
             "Leak MAE (room only): masked MAE over the pixels of the walls and of the floor/rug "
-            "under the table, recomputed by the formatter from the cached artifacts and "
-            "references the stored rows identify (see reproductions/table_volume.py). For the "
+            "under the table, measured after the sweep from the cached artifacts and "
+            "references the stored rows identify, stored as measurement table "
+            "`table-volume-leak` (see reproductions/table_volume.py). For the "
             "volume it is light leaking through thin geometry; surface methods have no leaks, "
             "and on these pixels it measures their sampling error (vertex PRT: two-triangle "
             "walls and floor).",
@@ -184,6 +187,13 @@ class VolumeTable(Reproduction):
                       for m in _registered_methods()]
         return cells
 
+    measurement_tables = (LEAK_TABLE,)
+
+    def measure_rows(self, frame, *, profile: str) -> dict[str, list[dict]]:
+        """The leak MAE of every swept run (:func:`leak_mae`), stored before formatting."""
+        return {LEAK_TABLE: [{"cell_run_id": run_id, "leak_mae": leak_mae(run)}
+                             for run_id, run in frame.groupby("run_id", sort=False)]}
+
     def format(self, frame, *, profile: str):
         header = ["scene", "method", "N", "PSNR masked (dB)", "SSIM masked", "FLIP masked",
                   "leak MAE (room)", "memory MiB", "frame ms (median)", "timing", "GL renderer",
@@ -197,7 +207,8 @@ class VolumeTable(Reproduction):
         for scene, method, n in keys:
             part = frame[(frame["label_scene"] == scene) & (frame["label_method"] == method)
                          & (frame["label_N"] == n)]
-            leaks = [leak_mae(run) for _, run in part.groupby("run_id", sort=False)]
+            leaks = [float(run["leak_mae"].iloc[0]) if "leak_mae" in run else float("nan")
+                     for _, run in part.groupby("run_id", sort=False)]
             rows.append([
                 scene, method, n if n else "—",
                 float(np.mean(part["metric_psnr_masked"])), float(np.mean(part["metric_ssim_masked"])),

@@ -6,7 +6,7 @@ lighting configurations),
 :mod:`.bake` (embree path-traced indirect bake), :mod:`.dataset`, :mod:`.basis` (SVD basis and
 transfer matrix), :mod:`.shadows` (shadow-map atlas), :mod:`.runtime` (GL passes), :mod:`.method` (the plug-in), :mod:`.reference`
 (Mitsuba references under analytic lights), :mod:`.evaluation` (experiments shared by the
-reproductions), :mod:`.panels` (figure drawing).
+reproductions; their figures are drawn in ``reproductions/``).
 """
 
 from .method import DataDrivenConfig, DataDrivenPRT

@@ -16,7 +16,7 @@ from prtbench.errors import AssetMissingError, InvalidInputError
 from prtbench.reproduction import TABLES, run_table
 from prtbench.results import load
 from prtbench.scene import get_scene
-from reproductions import _panels
+from reproductions import _panels, _plots
 from reproductions import figure_3_4 as f34
 from reproductions import table_3_1 as t31
 from reproductions import table_3_2 as t32
@@ -204,13 +204,10 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
     png, md = f34.FIGURE.make(profile="smoke", reports_dir=tmp_path, results_path=results,
                               progress=False)
     image = imageio.read_png(png)
-    # One row of 3 panels (2 methods + reference) of 64×48 with 4-pixel gaps, labels beside.
-    gap, h, w = 4, 48, 64
-    label_w = _panels.text_size("plants\n16890 tris")[0]
-    col_h = max(_panels.text_size(t)[1] for t in ["vertex TPFL", "texture TPFL",
-                                                    "Mitsuba path\n32 spp"])
-    title_h = _panels.text_size(f34.FIGURE.title + " (smoke profile)", size=16)[1] + gap
-    assert image.shape == (title_h + col_h + 2 * gap + h + gap, label_w + 2 * gap + 3 * w + 3 * gap, 3)
+    # One row of 3 panels (2 methods + reference) of 64×48, magnified 3× (nearest neighbour) to
+    # at least _plots.MIN_PANEL_PX wide, labels above and beside.
+    zoom = -(-_plots.MIN_PANEL_PX // 64)
+    assert image.shape[1] > 3 * 64 * zoom and image.shape[0] > 48 * zoom
     stored = load(results)
     assert sorted(stored["method"]) == ["texture-tpfl", "vertex-tpfl"]
     text = md.read_text()
@@ -218,11 +215,32 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
         assert f"{1000.0 / row['frame_ms']:.4g}" in text and row["run_id"] in text
 
 
-def test_grid_and_wireframe_overlay_geometry():
+def test_grid_and_wireframe_overlay_geometry(tmp_path):
+    from prtbench import imageio
+
     a = np.full((10, 20, 3), 0.5, np.float32)
-    out = _panels.grid([[a, None], [a, a]], gap=2)
-    assert out.shape == (2 * 10 + 2 + 2, 2 * 20 + 2 + 2, 3)
-    assert np.all(out[0:10, 0:20] == 0.5) and np.all(out[0:10, 22:42] == 1.0)  # blank = white
+    b = np.zeros((10, 20, 3), np.float32)
+    b[..., 0] = 1.0  # pure red: no label or background pixel has this colour
+    png = _plots.panel_grid(tmp_path / "grid.png", [[a, None], [b, b]], titles=[["x", "y"]])
+    out = imageio.read_png(png)
+    zoom = -(-_plots.MIN_PANEL_PX // 20)
+    red = (out[..., 0] > 0.99) & (out[..., 1] < 0.01) & (out[..., 2] < 0.01)
+    # Two red panels drawn at zoom × their pixel size (± a line of pixels at the axes' edges).
+    assert abs(int(red.sum()) - 2 * 10 * 20 * zoom**2) <= 2 * 2 * (10 + 20) * zoom
+    rows, cols = np.nonzero(red)
+    assert cols.max() - cols.min() + 1 > 2 * 20 * zoom  # side by side, with a gap
+    grey = np.all(np.abs(out - 0.5) < 1.5 / 255, axis=-1)
+    assert abs(int(grey.sum()) - 10 * 20 * zoom**2) <= 2 * (10 + 20) * zoom  # the blank cell is white
+    # Reproducible bytes: no software version or timestamp text chunk in the PNG.
+    assert png.read_bytes() == _plots.panel_grid(tmp_path / "again.png", [[a, None], [b, b]],
+                                                 titles=[["x", "y"]]).read_bytes()
+    data, chunks, at = png.read_bytes(), [], 8
+    while at < len(data):
+        size = int.from_bytes(data[at:at + 4], "big")
+        chunks.append(data[at + 4:at + 8])
+        at += 12 + size
+    assert chunks[0] == b"IHDR" and chunks[-1] == b"IEND"
+    assert not {b"tEXt", b"iTXt", b"zTXt", b"tIME"} & set(chunks), chunks
     panel = np.full((40, 80, 3), 0.5, np.float32)
     edges = np.zeros((80, 160), np.float32)
     edges[46, :] = 1.0  # one horizontal edge at 2×: half of panel row 23's coverage
@@ -245,3 +263,21 @@ def test_wireframe_edges_of_a_two_triangle_plane():
     assert geometry.any()
     # Two triangles: edges are a thin fraction of the covered pixels, and only where covered.
     assert 0.0 < edges[geometry].mean() < 0.25 and edges[~geometry].max() == 0.0
+
+
+def test_table_3_2_from_the_store_quotes_the_stored_gl_limit(tmp_path, monkeypatch):
+    _only_plants(monkeypatch)
+    results = tmp_path / "results.sqlite"
+    first, second = tmp_path / "measured", tmp_path / "rebuilt"
+    run_table(_Plants32(), profile="smoke", results_path=results, reports_dir=first,
+              progress=False)
+    measured = t32.gl_storage_block_limit()
+    assert measured > 0
+    # Rebuilt on "another machine" (a GL with a 1 MiB limit): the report still quotes the
+    # limit the sweep ran under, and the Sloan status does not change.
+    monkeypatch.setattr(t32, "gl_storage_block_limit", lambda: 1 << 20)
+    run_table(_Plants32(), profile="smoke", results_path=results, reports_dir=second,
+              progress=False, from_store=True)
+    for name in ("table-3.2.md", "table-3.2.csv"):
+        assert (second / name).read_bytes() == (first / name).read_bytes()
+    assert f"hold at most {measured / 2**20:.0f} MiB" in (first / "table-3.2.md").read_text()
