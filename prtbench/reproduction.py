@@ -287,6 +287,9 @@ def _merge_measurements(frame, table):
     if not len(table) or not len(frame):
         return frame
     provenance = {"run_id", "profile", "git_sha", "renderer", "device", "timestamp"}
+    clash = sorted((set(table.columns) - provenance - {"cell_run_id"}) & set(frame.columns))
+    if clash:  # a suffixed copy would hide the result rows' own column
+        raise ValueError(f"measurement table columns {clash} are result-row columns already")
     extra = table.drop(columns=[c for c in table.columns if c in provenance])
     return frame.merge(extra, how="left", left_on="run_id", right_on="cell_run_id",
                        sort=False).drop(columns=["cell_run_id"])
