@@ -209,23 +209,22 @@ def _sweep(args: argparse.Namespace) -> int:
         raise PrtbenchError("sweep: no grid; accepted: a sweep file (e.g. sweeps/plants-all.toml) "
                             "or --scene S --method M[,M...] [--grid KNOB=V1,V2,...]")
     results = Path(args.results) if args.results else None
-    for cell, reason in sweep.dropped:
-        print(f"prtbench: sweep: skipping {cell.method} {cell.scene} {dict(cell.label)}: {reason}",
-              file=sys.stderr)
-    print(f"sweep {sweep.source}: {len(sweep.cells)} cells, profile {sweep.profile}",
-          file=sys.stderr)
     outcome = run_cells(list(sweep.cells), profile=sweep.profile, results_path=results,
                         workers=args.workers, scheduler=args.scheduler, force=args.force,
                         progress=not args.quiet)
     retimed = (retime_serial(outcome, profile=sweep.profile, results_path=results,
                              progress=not args.quiet) if args.timing_serial else [])
     failed = outcome.failed + [c for c in retimed if c.status == "failed"]
+    for cell, reason in sweep.dropped:  # after the run: a user error stays one line
+        print(f"prtbench: sweep: left out {cell.method} {cell.scene} {dict(cell.label)}: {reason}",
+              file=sys.stderr)
     for item in failed:
         print(f"prtbench: cell failed: {item.cell.method} {item.cell.scene} "
               f"{dict(item.cell.label)}: {item.error}", file=sys.stderr)
     from .results import default_path
 
-    print(f"{outcome.count('done')} done, {outcome.count('skipped')} skipped (already stored), "
+    print(f"sweep {sweep.source} ({sweep.profile}): {len(outcome.cells)} cells: "
+          f"{outcome.count('done')} done, {outcome.count('skipped')} skipped (already stored), "
           f"{outcome.count('failed')} failed"
           f"{f' on {outcome.workers} worker(s)' if outcome.workers else ''} in {outcome.wall_s:.1f} s"
           f"{f'; {len(retimed)} re-timed serially' if args.timing_serial else ''}; "

@@ -255,7 +255,7 @@ def _validate(cells: Sequence[Cell], profile: str, results_path: Path | None
     seen: set[str] = set()
     keyed = []
     for cell in cells:
-        key = cell_key(prepare_cell(cell, profile=profile), code=code)
+        key = cell_key(prepare_cell(cell, profile=profile, reuse=True), code=code)
         if key not in seen:
             seen.add(key)
             keyed.append((cell, key))
