@@ -195,8 +195,9 @@ def _local_cluster(n_workers: int):
     # Spawned worker processes start from a fresh interpreter: no inherited GL context.
     dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
     threads = max(1, _cores() // n_workers)
+    # A free port for its HTTP server: several sweeps may run on one machine.
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                        dashboard_address=None, silence_logs=logging.ERROR,
+                        dashboard_address=":0", silence_logs=logging.ERROR,
                         env=_worker_env(threads))
 
 

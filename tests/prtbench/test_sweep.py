@@ -3,6 +3,7 @@ unreachable schedulers (issue #13 §1)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sqlite3
@@ -214,8 +215,12 @@ def test_failing_cell_is_reported_and_the_rest_run(tmp_path, capsys):
 
 
 def _rows_in(path: Path) -> int:
+    # Closed explicitly: a sqlite3 connection left to the garbage collector (it sits in a
+    # reference cycle) keeps this process's WAL index mapped after the writer deleted it,
+    # and later connections of this process then read the store as malformed.
     try:
-        with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=1) as conn:
+        with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True,
+                                                timeout=1)) as conn:
             return conn.execute("SELECT COUNT(*) FROM renders").fetchone()[0]
     except sqlite3.Error:
         return 0
