@@ -150,7 +150,9 @@ def _cores() -> int:
 
 
 def _worker_env(threads: int) -> dict[str, str]:
-    return {**{name: "1" for name in _THREAD_VARS}, "PRTBENCH_THREADS": str(threads)}
+    # LP_NUM_THREADS: llvmpipe's rasteriser threads (default: every core, per context).
+    return {**{name: "1" for name in _THREAD_VARS}, "PRTBENCH_THREADS": str(threads),
+            "LP_NUM_THREADS": str(threads)}
 
 
 try:
@@ -162,8 +164,8 @@ except ImportError:  # Dask is needed only with workers >= 1
 class WorkerSetup(_PluginBase):
     """Sets a Dask worker up for prtbench cells.
 
-    Caps BLAS/OpenMP/torch threads at 1 and sets ``PRTBENCH_THREADS`` to the worker's share
-    of its host's cores (precompute tracing reads it). The worker's EGL context and Mitsuba
+    Caps BLAS/OpenMP/torch threads at 1 and sets ``PRTBENCH_THREADS`` (precompute tracing)
+    and ``LP_NUM_THREADS`` (llvmpipe) to the worker's share of its host's cores. The worker's EGL context and Mitsuba
     variant are made lazily by the first cell it runs, in its own process: workers are
     started with ``spawn`` and never inherit a parent's context.
 

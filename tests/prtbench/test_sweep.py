@@ -268,3 +268,18 @@ def test_kill_9_mid_sweep_then_rerun_gives_the_uninterrupted_rows(tmp_path, work
     for key, rows in resumed.items():
         assert len(rows) == 1  # no duplicated cell
         assert rows[0].metrics == uninterrupted[key][0].metrics
+
+
+@pytest.mark.slow
+def test_existing_scheduler_runs_the_sweep_unchanged(tmp_path):
+    import dask
+    from distributed import LocalCluster
+
+    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        outcome = run_cells(CELLS[:1], profile="smoke", results_path=tmp_path / "r.sqlite",
+                            scheduler=cluster.scheduler_address, progress=False)
+    assert [c.status for c in outcome.cells] == ["done"] and outcome.workers == 1
+    (rows,) = _by_key(tmp_path / "r.sqlite").values()
+    assert rows[0].workers == 1 and rows[0].metrics["psnr_masked"] > 10.0
