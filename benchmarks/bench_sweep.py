@@ -5,8 +5,10 @@
 Both runs do the same work from the same start: each gets a fresh artifact cache holding
 only the path-traced references (rendered once beforehand, shared, so the concurrent first
 cells do not race to render the same reference) and a fresh results store. The times include
-starting the LocalCluster. Prints both times, the ratio and the load average (other processes
-on the machine distort it: run it on a quiet machine).
+starting the LocalCluster. Prints both times, the ratio, the workers' CPU time (how many
+cores each run kept busy: llvmpipe and the tracer are multi-threaded, so one worker already
+uses more than one core at times) and the load average (other processes on the machine
+distort it: run it on a quiet machine).
 """
 
 from __future__ import annotations
@@ -51,14 +53,17 @@ def main() -> int:
             shutil.copytree(warm / "references", cache / "references")
             os.environ["PRTBENCH_CACHE"] = str(cache)
             load = os.getloadavg()
+            cpu0 = _children_cpu()
             start = time.perf_counter()
             outcome = run_cells(cells, profile=sweep.profile, results_path=work / f"r{n}.sqlite",
                                 workers=n, progress=False)
             times[n] = time.perf_counter() - start
+            cpu = _children_cpu() - cpu0  # the workers, reaped when the cluster closed
             failed = outcome.count("failed")
             busy = sum(c.seconds for c in outcome.cells)
             print(f"{n} worker(s): {times[n]:.1f} s wall ({outcome.count('done')} done, "
-                  f"{failed} failed; {busy:.1f} s in cells); load average before "
+                  f"{failed} failed; {busy:.1f} s in cells; worker CPU {cpu:.1f} s = "
+                  f"{cpu / times[n]:.2f} cores busy); load average before "
                   f"{load[0]:.2f}, after {os.getloadavg()[0]:.2f}", flush=True)
         if 1 in times and len(times) > 1:
             for n, t in times.items():
@@ -67,6 +72,13 @@ def main() -> int:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0
+
+
+def _children_cpu() -> float:
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _render_references(cells, profile: str, prepare_cell) -> None:

@@ -8,7 +8,7 @@ status ``ok`` or ``degenerate``), and runs the rest:
 - otherwise on an embedded ``LocalCluster`` (worker processes started with ``spawn``, so no
   worker inherits a GL context or a Mitsuba variant; one thread each; ``workers`` of them,
   default one per core), or on the existing cluster at ``scheduler`` (``tcp://HOST:PORT``),
-  unchanged.
+  unchanged (the Dask side: :mod:`prtbench.tradeoff.cluster`).
 
 Every task runs one cell through the ordinary runner (:func:`measure_cell`: ``prepare`` +
 ``execute`` with no images and no store) and returns its rows, or the one-line error of a
@@ -35,17 +35,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInputError, PrtbenchError
+from ..errors import InvalidInputError
 from ..reproduction import Cell
+from .cluster import connect, cores, local_cluster, one_line, register_setup
 from .grid import prepare_cell
 
-#: Seconds to wait for an existing scheduler before ``--scheduler`` is an error.
-CONNECT_TIMEOUT_S = 5.0
 #: Statuses of stored rows that count as measured (failed cells store nothing).
 MEASURED = ("ok", "degenerate")
-#: Thread-count variables capped in every worker (BLAS, OpenMP, torch).
-_THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS",
-                "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "BLIS_NUM_THREADS")
 
 
 @dataclass
@@ -112,14 +108,6 @@ def cell_key(prepared, *, code: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def one_line(exc: BaseException) -> str:
-    """A failure as one line: the PrtbenchError message, else ``Type: first line``."""
-    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    if isinstance(exc, PrtbenchError):
-        return text
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
-
-
 def measure_cell(cell: Cell, *, profile: str, cell_key: str, workers: int) -> dict[str, Any]:
     """Run one cell through the ordinary runner; never raises.
 
@@ -140,97 +128,6 @@ def measure_cell(cell: Cell, *, profile: str, cell_key: str, workers: int) -> di
     except Exception as exc:  # noqa: BLE001 - a failing cell is reported, never fatal
         return {"key": key, "error": one_line(exc), "seconds": time.perf_counter() - start}
     return {"key": key, "rows": rows, "seconds": time.perf_counter() - start}
-
-
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
-def _worker_env(threads: int) -> dict[str, str]:
-    # LP_NUM_THREADS: llvmpipe's rasteriser threads (default: every core, per context).
-    return {**{name: "1" for name in _THREAD_VARS}, "PRTBENCH_THREADS": str(threads),
-            "LP_NUM_THREADS": str(threads)}
-
-
-try:
-    from distributed import WorkerPlugin as _PluginBase
-except ImportError:  # Dask is needed only with workers >= 1
-    _PluginBase = object
-
-
-class WorkerSetup(_PluginBase):
-    """Sets a Dask worker up for prtbench cells.
-
-    Caps BLAS/OpenMP/torch threads at 1 and sets ``PRTBENCH_THREADS`` (precompute tracing)
-    and ``LP_NUM_THREADS`` (llvmpipe) to the worker's share of its host's cores. The worker's EGL context and Mitsuba
-    variant are made lazily by the first cell it runs, in its own process: workers are
-    started with ``spawn`` and never inherit a parent's context.
-
-    Parameters
-    ----------
-    shares : mapping
-        Worker address → threads; workers not in it get ``default``.
-    default : int
-    """
-
-    name = "prtbench-worker-setup"
-
-    def __init__(self, shares: Mapping[str, int] | None = None, *, default: int = 1):
-        self.shares, self.default = dict(shares or {}), default
-
-    def setup(self, worker) -> None:
-        threads = int(self.shares.get(worker.address, self.default))
-        os.environ.update(_worker_env(threads))
-        if "torch" in sys.modules:  # already imported: the environment came too late for it
-            sys.modules["torch"].set_num_threads(1)
-
-
-def _local_cluster(n_workers: int):
-    import logging
-
-    import dask
-    from distributed import LocalCluster
-
-    # Spawned worker processes start from a fresh interpreter: no inherited GL context.
-    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
-    threads = max(1, _cores() // n_workers)
-    # A free port for its HTTP server: several sweeps may run on one machine.
-    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                        dashboard_address=":0", silence_logs=logging.ERROR,
-                        env=_worker_env(threads))
-
-
-def connect(scheduler: str, *, timeout_s: float = CONNECT_TIMEOUT_S):
-    """A Dask ``Client`` of the scheduler at ``scheduler``; one-line error if unreachable."""
-    from distributed import Client
-
-    if "://" not in scheduler:
-        raise InvalidInputError(f"--scheduler '{scheduler}'; accepted: a Dask scheduler address "
-                                f"such as tcp://HOST:PORT")
-    try:
-        return Client(scheduler, timeout=timeout_s)
-    except (OSError, TimeoutError, ValueError) as exc:
-        reason = one_line(exc)
-        raise InvalidInputError(f"--scheduler '{scheduler}': no Dask scheduler reachable within "
-                                f"{timeout_s:g} s ({reason}); accepted: the address of a running "
-                                f"scheduler, tcp://HOST:PORT") from None
-
-
-def _register_setup(client) -> int:
-    """Install :class:`WorkerSetup` on the cluster's workers; returns their number."""
-    from urllib.parse import urlparse
-
-    cores = client.run(_cores)  # address -> cores of that worker's host
-    per_host: dict[str, int] = {}
-    for address in cores:
-        host = urlparse(address).hostname or address
-        per_host[host] = per_host.get(host, 0) + 1
-    shares = {a: max(1, n // per_host[urlparse(a).hostname or a]) for a, n in cores.items()}
-    client.register_plugin(WorkerSetup(shares))
-    return max(1, len(cores))
 
 
 def _stored_keys(results_path: Path | None, profile: str) -> dict[str, set[int]]:
@@ -360,9 +257,9 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
                 if client is None:
                     from distributed import Client
 
-                    cluster = _local_cluster(workers or _cores())
+                    cluster = local_cluster(workers or cores())
                     client = Client(cluster)
-                n_workers = _register_setup(client)
+                n_workers = register_setup(client)
                 try:
                     _run_dask(client, todo, profile, n_workers, finish, bar)
                 finally:
