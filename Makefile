@@ -40,6 +40,12 @@ assets: setup  ## fetch pinned mesh and HDRI packages into the cache
 demo: setup  ## vertex PRT on plants, quick profile: images in out/, rows in results/
 	$(PRTBENCH) run --method vertex --scene plants --profile $(PROFILE)
 
+# A sweep grid on Dask (one worker per core): `make sweep SWEEP=sweeps/plants-all.toml PROFILE=quick`.
+SWEEP ?= sweeps/plants-all.toml
+.PHONY: sweep
+sweep: setup  ## run a sweep file (SWEEP=..., PROFILE=...); rows in results/, resumable
+	$(PRTBENCH) sweep $(SWEEP) --profile $(PROFILE)
+
 regress: setup
 	$(PRTBENCH) regress
 

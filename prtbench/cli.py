@@ -255,6 +255,53 @@ def _pareto(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sweep(args: argparse.Namespace) -> int:
+    from .config import parse_overrides
+    from .tradeoff import grid
+    from .tradeoff.sweep import retime_serial, run_cells
+
+    given = [o for o in ("scene", "method", "grid", "light", "set", "scene_param")
+             if getattr(args, o)] + (["variant"] if args.variant is not None else []) + (
+             ["views"] if args.views is not None else [])
+    if args.file and given:
+        raise PrtbenchError(f"sweep: both a file and --{given[0].replace('_', '-')}; accepted: "
+                            f"a sweep file, or --scene/--method/--grid options")
+    if args.file:
+        sweep = grid.load_sweep(args.file, profile=args.profile)
+    elif args.scene and args.method:
+        sweep = grid.from_options(
+            scenes=grid.split_values(args.scene), methods=grid.split_values(args.method),
+            grid=args.grid or [], fixed=parse_overrides(args.set or []),
+            lights=grid.split_values(args.light) if args.light else [],
+            variant=args.variant or "diffuse", views=args.views,
+            scene_params=parse_overrides(args.scene_param or []), profile=args.profile or "quick")
+    else:
+        raise PrtbenchError("sweep: no grid; accepted: a sweep file (e.g. sweeps/plants-all.toml) "
+                            "or --scene S --method M[,M...] [--grid KNOB=V1,V2,...]")
+    results = Path(args.results) if args.results else None
+    outcome = run_cells(list(sweep.cells), profile=sweep.profile, results_path=results,
+                        workers=args.workers, scheduler=args.scheduler, force=args.force,
+                        progress=not args.quiet)
+    retimed = (retime_serial(outcome, profile=sweep.profile, results_path=results,
+                             progress=not args.quiet) if args.timing_serial else [])
+    failed = outcome.failed + [c for c in retimed if c.status == "failed"]
+    for cell, reason in sweep.dropped:  # after the run: a user error stays one line
+        print(f"prtbench: sweep: left out {cell.method} {cell.scene} {dict(cell.label)}: {reason}",
+              file=sys.stderr)
+    for item in failed:
+        print(f"prtbench: cell failed: {item.cell.method} {item.cell.scene} "
+              f"{dict(item.cell.label)}: {item.error}", file=sys.stderr)
+    from .results import default_path
+
+    print(f"sweep {sweep.source} ({sweep.profile}): {len(outcome.cells)} cells: "
+          f"{outcome.count('done')} done, {outcome.count('skipped')} skipped (already stored), "
+          f"{outcome.count('failed')} failed"
+          f"{f' on {outcome.workers} worker(s)' if outcome.workers else ''} in {outcome.wall_s:.1f} s"
+          f"{f'; {len(retimed)} re-timed serially' if args.timing_serial else ''}; "
+          f"results store: {results or default_path()}")
+    return 1 if failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="prtbench", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -349,6 +396,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
     p.set_defaults(func=_pareto)
+
+    p = sub.add_parser("sweep", help="run a grid of methods and knobs (TOML file or options) on Dask")
+    p.add_argument("file", nargs="?", default=None, help="sweep file (sweeps/*.toml)")
+    p.add_argument("--scene", default=None, help="scene name(s), comma-separated")
+    p.add_argument("--method", default=None, help="method name(s), comma-separated")
+    p.add_argument("--grid", action="append", metavar="KNOB=V1,V2,...", help="a knob's values")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="knob fixed in every cell")
+    p.add_argument("--light", default=None, help="light name(s), comma-separated")
+    p.add_argument("--variant", default=None, help="material variant: diffuse or glossy")
+    p.add_argument("--views", type=int, default=None, help="number of trajectory views")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
+    p.add_argument("--profile", default=None, help="smoke, quick or paper (default: the file's, else quick)")
+    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: cores; 0: serial, no Dask)")
+    p.add_argument("--scheduler", default=None, help="existing Dask scheduler, tcp://HOST:PORT")
+    p.add_argument("--force", action="store_true", help="measure cells already in the store again")
+    p.add_argument("--timing-serial", action="store_true", help="then re-time finished cells one at a time")
+    p.add_argument("--results", default=None, help="results database (default results/prtbench.sqlite)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_sweep)
 
     p = sub.add_parser("regress", help="golden-metric regression of every method (smoke profile)")
     p.add_argument("--update", action="store_true", help="rewrite the baselines (explicit only)")

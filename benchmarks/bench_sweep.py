@@ -1,0 +1,103 @@
+"""Wall time of the 24-cell quick sweep on 2 Dask workers versus 1 (issue #13; not a test).
+
+    python benchmarks/bench_sweep.py [--sweep sweeps/plants-quick24.toml] [--workers 1,2]
+
+Both runs do the same work from the same start: each gets a fresh artifact cache holding
+only the path-traced references (rendered once beforehand, shared, so the concurrent first
+cells do not race to render the same reference) and a fresh results store. The times include
+starting the LocalCluster. Prints both times, the ratio, the workers' CPU time (how many
+cores each run kept busy: llvmpipe and the tracer are multi-threaded, so one worker already
+uses more than one core at times) and the load average (other processes on the machine
+distort it: run it on a quiet machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--sweep", default=str(ROOT / "sweeps" / "plants-quick24.toml"))
+    parser.add_argument("--workers", default="1,2", help="worker counts to time, comma-separated")
+    parser.add_argument("--profile", default=None)
+    args = parser.parse_args()
+    os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM-19.so")
+
+    from prtbench.tradeoff.grid import load_sweep, prepare_cell
+    from prtbench.tradeoff.sweep import run_cells
+
+    work = Path(tempfile.mkdtemp(prefix="bench-sweep-"))
+    try:
+        warm = work / "warm"
+        os.environ["PRTBENCH_CACHE"] = str(warm)
+        sweep = load_sweep(args.sweep, profile=args.profile)
+        cells = list(sweep.cells)
+        print(f"{args.sweep}: {len(cells)} cells, profile {sweep.profile}, "
+              f"{os.cpu_count()} cores", flush=True)
+        start = time.perf_counter()
+        _render_references(cells, sweep.profile, prepare_cell)
+        print(f"references (shared by both runs): {time.perf_counter() - start:.1f} s", flush=True)
+        times = {}
+        for n in (int(w) for w in args.workers.split(",")):
+            cache = work / f"cache-{n}"
+            shutil.copytree(warm / "references", cache / "references")
+            os.environ["PRTBENCH_CACHE"] = str(cache)
+            load = os.getloadavg()
+            cpu0 = _children_cpu()
+            start = time.perf_counter()
+            outcome = run_cells(cells, profile=sweep.profile, results_path=work / f"r{n}.sqlite",
+                                workers=n, progress=False)
+            times[n] = time.perf_counter() - start
+            cpu = _children_cpu() - cpu0  # the workers, reaped when the cluster closed
+            failed = outcome.count("failed")
+            busy = sum(c.seconds for c in outcome.cells)
+            print(f"{n} worker(s): {times[n]:.1f} s wall ({outcome.count('done')} done, "
+                  f"{failed} failed; {busy:.1f} s in cells; worker CPU {cpu:.1f} s = "
+                  f"{cpu / times[n]:.2f} cores busy); load average before "
+                  f"{load[0]:.2f}, after {os.getloadavg()[0]:.2f}", flush=True)
+        if 1 in times and len(times) > 1:
+            for n, t in times.items():
+                if n != 1:
+                    print(f"speed-up {n} workers vs 1: {times[1] / t:.2f}x (target >= 1.7x on 2 cores)")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+def _children_cpu() -> float:
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _render_references(cells, profile: str, prepare_cell) -> None:
+    """The path references of every distinct (scene, light, views) of ``cells``, into the cache."""
+    from prtbench.reference import render_references
+
+    seen = set()
+    for cell in cells:
+        prepared = prepare_cell(cell, profile=profile, reuse=True)
+        bounces = int(getattr(prepared.config, "bounces", 0))
+        key = (prepared.scene.content_hash(), prepared.light.name, len(prepared.scene.trajectory),
+               bounces)
+        if key in seen or cell.reference != "path":
+            continue
+        seen.add(key)
+        render_references(prepared.scene, prepared.light, prepared.scene.trajectory.views,
+                          width=prepared.width, height=prepared.height,
+                          spp=prepared.profile.reference_spp, bounces=bounces)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

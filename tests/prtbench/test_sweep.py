@@ -1,0 +1,285 @@
+"""``prtbench sweep``: grid validation, Dask workers versus serial, resume after kill -9,
+unreachable schedulers (issue #13 §1)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prtbench.cli import main
+from prtbench.reproduction import Cell
+from prtbench.tradeoff import grid
+from prtbench.tradeoff.sweep import retime_serial, run_cells
+
+ROOT = Path(__file__).resolve().parents[2]
+VALID = """
+profile = "smoke"
+scene = "plants"
+light = "sky"
+
+[[method]]
+name = "vertex"
+grid = { sh_bands = [3, 4] }
+"""
+
+
+def _sweep_file(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "sweep.toml"
+    path.write_text(text)
+    return path
+
+
+def _error(capsys, argv: list[str]) -> str:
+    """Run the CLI expecting a user error: exit 2, one stderr line; returns that line."""
+    assert main(argv) == 2
+    lines = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+    assert len(lines) == 1 and lines[0].startswith("prtbench: error: "), lines
+    return lines[0]
+
+
+@pytest.mark.parametrize("text, expected", [
+    (VALID.replace('grid = {', 'grid = {{'), ["malformed TOML", "line 8", "column"]),
+    (VALID.replace('"vertex"', '"vertx"'), ["unknown method 'vertx'", "vertex", "texture-tpfl"]),
+    (VALID.replace("sh_bands", "sh_band"), ["unknown knob 'sh_band'", "sh_bands", "rays_per_point"]),
+    (VALID.replace('"plants"', '"plantz"'), ["unknown scene 'plantz'", "plants"]),
+    (VALID.replace('"sky"', '"skyy"'), ["unknown light 'skyy'", "sky", "sunset"]),
+    (VALID.replace("light =", "lihgt ="), ["unknown top-level key 'lihgt'", "light"]),
+    (VALID.replace("[3, 4]", "[3, 99]"), ["99", "sh_bands", "[1, 8]"]),
+    (VALID.replace("[3, 4]", "3"), ["sh_bands = 3", "a non-empty list"]),
+    (VALID.replace('"vertex"', '"learnt-sdf"').replace("sh_bands", "hidden").replace("[3, 4]", "[8, 16]"),
+     ["learnt-sdf", "no valid cell", "needs an SDF scene", "sdf-rabbit"]),
+    ('profile = "smoke"\nscene = "plants"\n', ["no [[method]] tables"]),
+])
+def test_sweep_file_errors_are_one_line_and_write_nothing(tmp_path, capsys, text, expected):
+    path = _sweep_file(tmp_path, text)
+    results = tmp_path / "r.sqlite"
+    line = _error(capsys, ["sweep", str(path), "--results", str(results), "--quiet"])
+    for part in expected:
+        assert part in line, line
+    if "TOML" in expected[0]:
+        assert str(path) in line
+    assert not results.exists()
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--grid", "sh_bands"], ["--grid 'sh_bands'", "KNOB=V1,V2"]),
+    (["--grid", "sh_bandz=3,4"], ["unknown knob 'sh_bandz'", "sh_bands"]),
+    (["--grid", "sh_bands=3,x"], ["sh_bands", "'x'"]),
+    (["--workers", "-1"], ["--workers -1", "0 (serial"]),
+    (["--scheduler", "localhost:8786"], ["--scheduler 'localhost:8786'", "tcp://HOST:PORT"]),
+])
+def test_cli_grid_errors(tmp_path, capsys, argv, expected):
+    results = tmp_path / "r.sqlite"
+    line = _error(capsys, ["sweep", "--scene", "plants", "--method", "vertex", "--profile", "smoke",
+                           "--results", str(results), "--quiet", *argv])
+    for part in expected:
+        assert part in line, line
+    assert not results.exists()
+
+
+def test_file_and_options_together_or_neither_are_errors(tmp_path, capsys):
+    path = _sweep_file(tmp_path, VALID)
+    assert "both a file and --scene" in _error(capsys, ["sweep", str(path), "--scene", "plants"])
+    assert "no grid" in _error(capsys, ["sweep", "--method", "vertex"])
+
+
+def test_unreachable_scheduler_fails_fast_and_writes_nothing(tmp_path, capsys):
+    path = _sweep_file(tmp_path, VALID)
+    results = tmp_path / "r.sqlite"
+    start = time.monotonic()
+    line = _error(capsys, ["sweep", str(path), "--scheduler", "tcp://127.0.0.1:9",
+                           "--results", str(results), "--quiet"])
+    assert time.monotonic() - start < 20.0
+    assert "tcp://127.0.0.1:9" in line and "no Dask scheduler reachable" in line
+    assert not results.exists()
+
+
+def test_cli_grid_expands_to_typed_cells():
+    sweep = grid.from_options(scenes=["plants"], methods=["vertex", "texture-tpfl"],
+                              grid=["sh_bands=3,4,5", "rays_per_point=32,64"], lights=["sky"],
+                              profile="smoke")
+    assert len(sweep.cells) == 2 * 3 * 2
+    first = sweep.cells[0]
+    assert (first.method, first.scene, first.light) == ("vertex", "plants", "sky")
+    assert first.label == {"sh_bands": 3, "rays_per_point": 32}  # parsed by the config: ints
+    assert {c.method for c in sweep.cells} == {"vertex", "texture-tpfl"}
+    assert grid.split_values("2,[2,1,2],3") == ["2", "[2,1,2]", "3"]
+
+
+def test_shipped_sweep_files_cover_every_method():
+    from prtbench.method import METHODS
+
+    every = grid.load_sweep(ROOT / "sweeps" / "plants-all.toml", profile="smoke")
+    per_method = Counter(c.method for c in every.cells)
+    assert set(per_method) == set(METHODS.names())
+    assert all(3 <= n <= 6 for n in per_method.values()), per_method
+    assert not every.dropped
+    assert {c.scene for c in every.cells if c.method != "learnt-sdf"} == {"plants"}
+    assert {c.light for c in every.cells} == {"sky"}
+    quick = grid.load_sweep(ROOT / "sweeps" / "plants-quick24.toml")
+    assert quick.profile == "quick" and len(quick.cells) == 24
+
+
+CELLS = [Cell("vertex", "plants", {"sh_bands": 3}, light="sky", overrides={"sh_bands": 3}),
+         Cell("vertex", "plants", {"sh_bands": 4}, light="sky", overrides={"sh_bands": 4}),
+         Cell("irradiance-volume", "plants", {"resolution": 4}, light="sky",
+              overrides={"resolution": 4})]
+
+
+def _by_key(path: Path) -> dict[str, list]:
+    from prtbench.results import ResultsStore
+
+    out: dict[str, list] = {}
+    for row in ResultsStore(path).query():
+        out.setdefault(row.cell_key, []).append(row)
+    return out
+
+
+def test_two_workers_equal_serial_and_resume_skips(tmp_path, monkeypatch):
+    """Separate caches, so both runs precompute and render their references themselves."""
+    keys = {}
+    for name, workers in (("serial", 0), ("dask", 2)):
+        monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / f"cache-{name}"))
+        outcome = run_cells(CELLS, profile="smoke", results_path=tmp_path / f"{name}.sqlite",
+                            workers=workers, progress=False)
+        assert [c.status for c in outcome.cells] == ["done"] * 3, [c.error for c in outcome.cells]
+        assert outcome.workers == max(1, workers)
+        keys[name] = _by_key(tmp_path / f"{name}.sqlite")
+    assert set(keys["serial"]) == set(keys["dask"]) and len(keys["serial"]) == 3
+    for key, rows in keys["serial"].items():
+        (serial,), (dask,) = rows, keys["dask"][key]
+        assert serial.metrics == dask.metrics  # exactly
+        assert (serial.status, serial.workers, dask.workers) == ("ok", 1, 2)
+        assert serial.memory_bytes == dask.memory_bytes
+
+    # The artifacts (and so the images) are bit-identical: vertex is deterministic.
+    from prtbench.method import METHODS, load_or_precompute
+    from prtbench.lights import get_light
+    from prtbench.scene import get_scene
+
+    method = METHODS.get("vertex")
+    config = method.make_config({"sh_bands": 4}, profile="smoke")
+    scene = get_scene("plants").with_views(1)
+    images, arrays = [], []
+    for name in ("serial", "dask"):
+        monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / f"cache-{name}"))
+        artifact = load_or_precompute(method, scene, config, progress=False)
+        assert artifact.cache_hit  # made by that run, not now
+        arrays.append(artifact.arrays)
+        renderer = method.renderer(scene, artifact, config, width=64, height=48)
+        try:
+            images.append(renderer.render(scene.trajectory.views[0], get_light("sky")))
+        finally:
+            renderer.release()
+    assert arrays[0].keys() == arrays[1].keys()
+    assert all(np.array_equal(arrays[0][k], arrays[1][k]) for k in arrays[0])
+    assert images[0].std() > 0.01 and np.array_equal(images[0], images[1])
+
+    # Resume: everything is stored, so nothing runs; --timing-serial adds one workers=1 row
+    # per cell measured on 2 workers, with the same metrics.
+    again = run_cells(CELLS, profile="smoke", results_path=tmp_path / "dask.sqlite", workers=2,
+                      progress=False)
+    assert [c.status for c in again.cells] == ["skipped"] * 3 and again.workers == 0
+    retimed = retime_serial(again, profile="smoke", results_path=tmp_path / "dask.sqlite",
+                            progress=False)
+    assert [c.status for c in retimed] == ["done"] * 3
+    after = _by_key(tmp_path / "dask.sqlite")
+    for key, rows in after.items():
+        assert sorted(r.workers for r in rows) == [1, 2]
+        assert rows[0].metrics == rows[1].metrics == keys["serial"][key][0].metrics
+    assert retime_serial(again, profile="smoke", results_path=tmp_path / "dask.sqlite",
+                         progress=False) == []
+
+
+def test_failing_cell_is_reported_and_the_rest_run(tmp_path, capsys):
+    # data-driven's smoke lightmap (128²) cannot pack plants' charts: fails in the precompute.
+    results = tmp_path / "r.sqlite"
+    rc = main(["sweep", "--scene", "plants", "--method", "vertex,data-driven", "--light", "sky",
+               "--profile", "smoke", "--workers", "0", "--results", str(results), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 1
+    failed = [l for l in err.splitlines() if l.startswith("prtbench: cell failed: data-driven")]
+    assert len(failed) == 1 and "lightmap" in failed[0], err
+    rows = _by_key(results)
+    assert len(rows) == 1 and next(iter(rows.values()))[0].method == "vertex"
+
+
+def _rows_in(path: Path) -> int:
+    # Closed explicitly: a sqlite3 connection left to the garbage collector (it sits in a
+    # reference cycle) keeps this process's WAL index mapped after the writer deleted it,
+    # and later connections of this process then read the store as malformed.
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True,
+                                                timeout=1)) as conn:
+            return conn.execute("SELECT COUNT(*) FROM renders").fetchone()[0]
+    except sqlite3.Error:
+        return 0
+
+
+RESUME = VALID.replace("[3, 4]", "[2, 3, 4, 5]") + """
+[[method]]
+name = "vertex-tpfl"
+grid = { sh_bands = [3, 4] }
+"""
+
+
+@pytest.mark.parametrize("workers", [0, pytest.param(2, marks=pytest.mark.slow)])
+def test_kill_9_mid_sweep_then_rerun_gives_the_uninterrupted_rows(tmp_path, workers):
+    import psutil
+
+    path = _sweep_file(tmp_path, RESUME)
+    killed, clean = tmp_path / "killed.sqlite", tmp_path / "clean.sqlite"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    argv = [sys.executable, "-m", "prtbench.cli", "sweep", str(path), "--workers", str(workers),
+            "--quiet"]
+    proc = subprocess.Popen([*argv, "--results", str(killed)], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 240
+    while _rows_in(killed) == 0 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    children = psutil.Process(proc.pid).children(recursive=True) if proc.poll() is None else []
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    # The orphaned workers lose their scheduler and exit; never leave them behind.
+    gone, alive = psutil.wait_procs(children, timeout=60)
+    for child in alive:
+        child.kill()
+    assert not alive, f"{len(alive)} worker processes outlived the killed client"
+    partial = _by_key(killed)
+    assert 1 <= len(partial) < 6, "the kill did not land mid-sweep"
+
+    done = subprocess.run([*argv, "--results", str(killed)], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert f"{len(partial)} skipped" in done.stdout
+    done = subprocess.run([*argv, "--results", str(clean)], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    resumed, uninterrupted = _by_key(killed), _by_key(clean)
+    assert set(resumed) == set(uninterrupted) and len(resumed) == 6
+    for key, rows in resumed.items():
+        assert len(rows) == 1  # no duplicated cell
+        assert rows[0].metrics == uninterrupted[key][0].metrics
+
+
+@pytest.mark.slow
+def test_existing_scheduler_runs_the_sweep_unchanged(tmp_path):
+    import dask
+    from distributed import LocalCluster
+
+    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        outcome = run_cells(CELLS[:1], profile="smoke", results_path=tmp_path / "r.sqlite",
+                            scheduler=cluster.scheduler_address, progress=False)
+    assert [c.status for c in outcome.cells] == ["done"] and outcome.workers == 1
+    (rows,) = _by_key(tmp_path / "r.sqlite").values()
+    assert rows[0].workers == 1 and rows[0].metrics["psnr_masked"] > 10.0
