@@ -133,6 +133,14 @@ def panel_grid(path: Path, panels: Sequence[Sequence[np.ndarray | None]], *,
     return save(fig, path)
 
 
+def titled_grid(path: Path, images: Mapping[str, np.ndarray], *, columns: int) -> Path:
+    """:func:`panel_grid` of named panels in reading order, ``columns`` to a row, each titled
+    with its name (the stored panels of a figure, in the order they were measured)."""
+    keys = list(images)
+    rows = [keys[i:i + columns] for i in range(0, len(keys), columns)]
+    return panel_grid(path, [[images[k] for k in row] for row in rows], titles=rows)
+
+
 def line_plot(path: Path, series: Mapping[str, tuple[Sequence[float], Sequence[float], bool]], *,
               title: str, xlabel: str, ylabel: str, log_x: bool = True, log_y: bool = True,
               size: tuple[float, float] = (7.5, 4.6)) -> Path:

@@ -147,10 +147,8 @@ class FigureDdprt12(Figure):
         table = stored.table(TABLE)
         records = _panels.records(table)
         images = stored.images()
-        keys = list(images)
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png",
-                                [[images[k] for k in keys[i:i + 3]] for i in range(0, len(keys), 3)],
-                                titles=[keys[i:i + 3] for i in range(0, len(keys), 3)])
+        png = _plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
+                                 columns=3)
         header = ["image", "psnr_masked_db", "flip_masked", "mean_radiance_unlit",
                   "unlit_vs_reference"]
         rows = [[r[h] for h in header] for r in records]

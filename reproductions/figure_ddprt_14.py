@@ -157,12 +157,8 @@ class FigureDdprt14(Figure):
                                title=f"{SCENE}: held-out lights, lightmap space",
                                xlabel="basis elements n (mean included)",
                                ylabel="RMSE / RMS(reference)")
-        images = stored.images()
-        keys = list(images)
-        panels = [[images[k] for k in keys[i:i + 2]] for i in range(0, len(keys), 2)]
-        titles = [keys[i:i + 2] for i in range(0, len(keys), 2)]
-        images_png = _plots.panel_grid(reports_dir / f"figure-{self.name}-images.png", panels,
-                                       titles=titles)
+        images_png = _plots.titled_grid(reports_dir / f"figure-{self.name}-images.png",
+                                        stored.images(), columns=2)
         csv_path = write_csv(reports_dir / f"figure-{self.name}.csv", header, rows)
         spp = next((int(r["reference_spp"]) for r in records if r["space"] == "image"), None)
         md = reports_dir / f"figure-{self.name}.md"

@@ -104,10 +104,8 @@ class FigureDdprt8(Figure):
         table = stored.table(TABLE)
         records = _panels.records(table)
         images = stored.images()
-        keys = list(images)
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png",
-                                [[images[k] for k in keys[i:i + 5]] for i in range(0, len(keys), 5)],
-                                titles=[keys[i:i + 5] for i in range(0, len(keys), 5)])
+        png = _plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
+                                 columns=5)
         header = ["case", "light", "indirect_rmse", "indirect_rmse_relative", "projection_rmse",
                   "projection_rmse_relative", "total_rmse", "reference_noise_rmse"]
         rows = [[r[h] for h in header] for r in records]
