@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import tempfile
+import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -103,15 +106,85 @@ def load_arrays(path: Path) -> dict[str, np.ndarray] | None:
     return arrays
 
 
+class ComputeCredit:
+    """Original compute time of the cached sub-steps a precompute reused (see
+    :func:`credit_cached_compute`)."""
+
+    def __init__(self) -> None:
+        self.credited_s = 0.0
+        #: Cache hits whose compute time was never recorded (entries from before the record).
+        self.unknown = 0
+
+
+#: Open credits, innermost last. A precompute runs its cached sub-steps on the calling thread,
+#: one precompute at a time per process, so one stack (under a lock) is enough.
+_CREDITS: list[ComputeCredit] = []
+_CREDITS_LOCK = threading.Lock()
+
+
+@contextmanager
+def credit_cached_compute() -> Iterator[ComputeCredit]:
+    """Collect, while open, the recorded compute time of every :func:`cached_arrays` hit.
+
+    A precompute whose transfer (or another sub-step) comes from the cache finishes in a
+    fraction of its cost; its true cost from scratch is its wall time plus these credits,
+    which is what ``precompute_s`` must report (a stored row never shows the assembly time
+    of cached parts as a precompute time).
+    """
+    credit = ComputeCredit()
+    with _CREDITS_LOCK:
+        _CREDITS.append(credit)
+    try:
+        yield credit
+    finally:
+        with _CREDITS_LOCK:
+            _CREDITS.remove(credit)
+            if _CREDITS:  # a nested precompute's reuse is its parent's reuse too
+                _CREDITS[-1].credited_s += credit.credited_s
+                _CREDITS[-1].unknown += credit.unknown
+
+
+def _credit(seconds: float | None) -> None:
+    with _CREDITS_LOCK:
+        if _CREDITS:
+            if seconds is None:
+                _CREDITS[-1].unknown += 1
+            else:
+                _CREDITS[-1].credited_s += seconds
+
+
+def _read_compute_time(path: Path) -> float | None:
+    try:
+        value = float(json.loads(path.read_text())["compute_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return value if math.isfinite(value) and value >= 0 else None
+
+
 def cached_arrays(kind: str, key: str, compute: Callable[[], Mapping[str, np.ndarray]], *,
                   use_cache: bool = True) -> dict[str, np.ndarray]:
-    """Return the arrays cached under ``kind/key``, computing and storing them if absent."""
+    """Return the arrays cached under ``kind/key``, computing and storing them if absent.
+
+    The compute time (its wall time plus that of the cached sub-steps it reused) is recorded
+    beside the entry (``<key>.time.json``), and a hit credits it to the open
+    :func:`credit_cached_compute`, so a precompute built from cached parts reports what it
+    costs from scratch.
+    """
     path = cache_root() / kind / f"{key}.npz"
+    time_path = path.with_name(f"{key}.time.json")
     if use_cache:
         hit = load_arrays(path)
         if hit is not None:
+            _credit(_read_compute_time(time_path))
             return hit
-    arrays = {k: np.asarray(v) for k, v in compute().items()}
+    with credit_cached_compute() as inner:
+        start = time.perf_counter()
+        arrays = {k: np.asarray(v) for k, v in compute().items()}
+        elapsed = time.perf_counter() - start + inner.credited_s
+        unknown = inner.unknown
     if use_cache:
         save_arrays(path, arrays)
+        if not unknown:  # a time missing parts would understate the entry's cost
+            with atomic_path(time_path) as tmp:
+                tmp.write_text(json.dumps({"compute_s": elapsed}))
     return arrays

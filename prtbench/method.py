@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from . import config as config_mod
-from .cache import atomic_path, cache_root, content_key, load_arrays, save_arrays
+from .cache import (atomic_path, cache_root, content_key, credit_cached_compute, load_arrays,
+                    save_arrays)
 from .registry import Registry
 
 if TYPE_CHECKING:
@@ -243,16 +244,20 @@ def load_or_precompute(method_cls: type[Method], scene: "Scene", config: Any, *,
             meta = json.loads(str(stored.pop("__meta__")))
             return Artifact(method_cls.name, stored, meta["meta"], meta["precompute_s"], True)
     record = _read_build_record(record_path) if use_cache else None
-    start = time.perf_counter()
-    artifact = method_cls.precompute(scene, config, progress=progress)
-    artifact.precompute_s = time.perf_counter() - start
+    with credit_cached_compute() as reused:
+        start = time.perf_counter()
+        artifact = method_cls.precompute(scene, config, progress=progress)
+        wall_s = time.perf_counter() - start
+    # Cached sub-steps (transfer, texels, bounces, …) count at their recorded compute time:
+    # precompute_s is the cost from scratch, not the assembly of cached parts.
+    artifact.precompute_s = wall_s + reused.credited_s
+    if reused.unknown:  # a reused part from an older cache has no recorded time
+        artifact.original_time_known = False
     if use_cache:
         if existed or record is not None:  # built before: this is a rebuild
-            artifact.rebuilt, artifact.rebuild_s = True, artifact.precompute_s
+            artifact.rebuilt, artifact.rebuild_s = True, wall_s
             if record is not None:
-                artifact.precompute_s = record
-            else:
-                artifact.original_time_known = False
+                artifact.precompute_s, artifact.original_time_known = record, True
         meta = json.dumps({"meta": artifact.meta, "precompute_s": artifact.precompute_s})
         save_arrays(path, {**artifact.arrays, "__meta__": np.array(meta)})
         if not artifact.rebuilt:  # a rebuild's time is not the build's: record only first builds

@@ -315,9 +315,12 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         memory_bytes=memory, precompute_s=artifact.precompute_s,
         precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results,
         precompute_rebuilt=artifact.rebuilt, precompute_rebuild_s=artifact.rebuild_s)
-    summary.rebuilt_note = ("" if artifact.original_time_known else
-                            "precompute rebuilt from a corrupt cache file; precompute_s is the "
-                            "rebuild's time")
+    summary.rebuilt_note = (
+        "" if artifact.original_time_known else
+        "precompute rebuilt from a corrupt cache file; precompute_s is the rebuild's time"
+        if artifact.rebuilt else
+        "precompute reused cached parts whose compute time was never recorded (an older "
+        "cache); precompute_s understates the cost from scratch")
     if req.store_results:
         from .results import ResultsStore
 

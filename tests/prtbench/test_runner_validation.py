@@ -355,7 +355,10 @@ def test_rebuilt_artifact_keeps_its_original_precompute_time(tmp_path, monkeypat
     np.testing.assert_array_equal(hit.arrays["coefficients"], first.arrays["coefficients"])
 
 
-def test_rebuild_without_a_record_is_flagged_with_its_own_time(tmp_path, monkeypatch):
+def test_rebuild_without_a_record_counts_its_cached_parts(tmp_path, monkeypatch):
+    """No build record (a cache from before records existed): the rebuild's own wall time is
+    short, but its cached sub-step credits its recorded compute time, so precompute_s is still
+    the cost from scratch. Without that sub-step's record too, the time is flagged unknown."""
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path))
     load_or_precompute(_SlowTransferMethod, _StubScene(), _Config(), progress=False)
     folder = tmp_path / "artifacts" / _SlowTransferMethod.name
@@ -364,9 +367,16 @@ def test_rebuild_without_a_record_is_flagged_with_its_own_time(tmp_path, monkeyp
     (artifact,) = folder.glob("*.npz")
     artifact.write_bytes(b"corrupt")
     rebuilt = load_or_precompute(_SlowTransferMethod, _StubScene(), _Config(), progress=False)
-    assert rebuilt.rebuilt and not rebuilt.original_time_known
-    assert rebuilt.precompute_s == rebuilt.rebuild_s < _SlowTransferMethod.sleep_s
+    assert rebuilt.rebuilt and rebuilt.original_time_known
+    assert rebuilt.rebuild_s < _SlowTransferMethod.sleep_s <= rebuilt.precompute_s
     assert not list(folder.glob("*.json"))  # a rebuild's time is never recorded as the build's
+    for time_record in tmp_path.rglob("*.time.json"):
+        time_record.unlink()  # the sub-step's compute time unrecorded too (an older cache)
+    (artifact,) = folder.glob("*.npz")
+    artifact.write_bytes(b"corrupt")
+    again = load_or_precompute(_SlowTransferMethod, _StubScene(), _Config(), progress=False)
+    assert again.rebuilt and not again.original_time_known
+    assert again.precompute_s == again.rebuild_s < _SlowTransferMethod.sleep_s
 
 
 def test_run_row_records_the_rebuild(tmp_path, monkeypatch):

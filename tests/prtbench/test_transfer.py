@@ -39,7 +39,9 @@ def fresh_cache(tmp_path, monkeypatch):
 
 
 def _cache_files(root) -> list[str]:
-    return [os.path.join(d, f) for d, _, files in os.walk(root) for f in files] if root.exists() else []
+    """Cache entries (``.npz``); their ``.time.json`` compute-time records are not entries."""
+    return [os.path.join(d, f) for d, _, files in os.walk(root) for f in files
+            if not f.endswith(".time.json")] if root.exists() else []
 
 
 # --- shadowed transfer ------------------------------------------------------------------------
