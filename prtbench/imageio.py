@@ -13,13 +13,16 @@ import os
 import re
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
 from .cache import atomic_path
 from .errors import InvalidInputError
+
+T = TypeVar("T")
 
 
 @contextlib.contextmanager
@@ -75,6 +78,26 @@ def _exr_error(path: Path, exc: BaseException, lines: list[str]) -> InvalidInput
     return InvalidInputError(f"cannot read EXR '{path}': {reason}")
 
 
+def _openexr_call(path: Path, read: Callable[[Any], T]) -> T:
+    """``read(OpenEXR)`` with the library's console output captured, failures as one line.
+
+    Both readers below go through here so that whatever OpenEXR prints (on the C++ side or
+    through the binding) ends up in the :class:`InvalidInputError`, never on the console.
+    """
+    import OpenEXR
+
+    with _library_output() as lines:
+        try:
+            value = read(OpenEXR)
+        except Exception as exc:  # noqa: BLE001 - the binding raises several types
+            error: BaseException | None = exc
+        else:
+            error = None
+    if error is not None:
+        raise _exr_error(path, error, lines) from None
+    return value
+
+
 def read_exr(path: str | Path) -> np.ndarray:
     """Read an OpenEXR file's RGB(A) channels as float32 (H, W, 3).
 
@@ -84,34 +107,30 @@ def read_exr(path: str | Path) -> np.ndarray:
         If the file is missing, unreadable or has no RGB / Y channels (one line, with what
         OpenEXR itself printed on stderr folded in).
     """
-    import OpenEXR
-
     path = Path(path)
     if not path.is_file():
         raise InvalidInputError(f"EXR file not found: {path}")
-    with _library_output() as lines:
-        try:
-            with OpenEXR.File(str(path), separate_channels=False) as exr:
-                channels = exr.channels()
-                image = next((np.ascontiguousarray(channels[n].pixels[..., :3], dtype=np.float32)
-                              for n in ("RGB", "RGBA") if n in channels), None)
-            if image is None:
-                # Separate channels (R, G, B) or a luminance-only file.
-                with OpenEXR.File(str(path), separate_channels=True) as exr:
-                    chans = exr.channels()
-                    if all(c in chans for c in "RGB"):
-                        image = np.stack([chans[c].pixels for c in "RGB"], -1).astype(np.float32)
-                    elif "Y" in chans:
-                        y = chans["Y"].pixels.astype(np.float32)
-                        image = np.repeat(y[..., None], 3, axis=-1)
-        except Exception as exc:  # noqa: BLE001 - the binding raises several types
-            error: BaseException | None = exc
-        else:
-            error = None
-    if error is not None:
-        raise _exr_error(path, error, lines) from None
+
+    def read(OpenEXR) -> tuple[np.ndarray | None, list[str]]:
+        with OpenEXR.File(str(path), separate_channels=False) as exr:
+            channels = exr.channels()
+            image = next((np.ascontiguousarray(channels[n].pixels[..., :3], dtype=np.float32)
+                          for n in ("RGB", "RGBA") if n in channels), None)
+        if image is not None:
+            return image, sorted(channels)
+        # Separate channels (R, G, B) or a luminance-only file.
+        with OpenEXR.File(str(path), separate_channels=True) as exr:
+            channels = exr.channels()
+            if all(c in channels for c in "RGB"):
+                image = np.stack([channels[c].pixels for c in "RGB"], -1).astype(np.float32)
+            elif "Y" in channels:
+                y = channels["Y"].pixels.astype(np.float32)
+                image = np.repeat(y[..., None], 3, axis=-1)
+            return image, sorted(channels)
+
+    image, names = _openexr_call(path, read)
     if image is None:
-        raise InvalidInputError(f"EXR '{path}' has no RGB or Y channels (has {sorted(chans)})")
+        raise InvalidInputError(f"EXR '{path}' has no RGB or Y channels (has {names})")
     return image
 
 
@@ -132,21 +151,14 @@ def write_exr(path: str | Path, image: np.ndarray, *, metadata: dict[str, str] |
 
 def read_exr_metadata(path: str | Path) -> dict[str, str]:
     """String attributes of an EXR header (what :func:`write_exr` stored as metadata)."""
-    import OpenEXR
-
     path = Path(path)
-    with _library_output() as lines:
-        try:
-            with OpenEXR.File(str(path)) as exr:
-                # Copy inside the block: the binding empties the header when the file closes.
-                header = {k: v for k, v in exr.header().items() if isinstance(v, str)}
-        except Exception as exc:  # noqa: BLE001 - the binding raises several types
-            error: BaseException | None = exc
-        else:
-            error = None
-    if error is not None:
-        raise _exr_error(path, error, lines) from None
-    return header
+
+    def read(OpenEXR) -> dict[str, str]:
+        with OpenEXR.File(str(path)) as exr:
+            # Copy inside the block: the binding empties the header when the file closes.
+            return {k: v for k, v in exr.header().items() if isinstance(v, str)}
+
+    return _openexr_call(path, read)
 
 
 def read_hdr(path: str | Path) -> np.ndarray:

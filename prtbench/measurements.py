@@ -87,19 +87,10 @@ def _write(results_path: Path | None, statements) -> None:
     """Run ``statements(conn)`` in one immediate transaction on the store at ``results_path``."""
     from .results import ResultsStore
 
-    conn = ResultsStore(results_path)._connect()  # WAL, busy timeout, renders schema checked
-    try:
-        conn.execute("BEGIN IMMEDIATE")
-        try:
-            for sql in _SCHEMA:
-                conn.execute(sql)
-            statements(conn)
-            conn.execute("COMMIT")
-        except BaseException:
-            conn.execute("ROLLBACK")
-            raise
-    finally:
-        conn.close()
+    with ResultsStore(results_path).transaction() as conn:
+        for sql in _SCHEMA:
+            conn.execute(sql)
+        statements(conn)
 
 
 def store_path(results_path: str | Path | None) -> Path:

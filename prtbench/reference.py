@@ -22,7 +22,7 @@ reference's own per-pixel Monte-Carlo error (``noise_rmse`` on linear radiance,
 
 Cached EXRs carry their metadata (spp, noise, variant, ...) in the header together with a
 SHA-256 over the pixels and that metadata (:func:`reference_checksum`): an entry whose checksum
-does not match is corrupt, said on stderr and rendered again, never trusted.
+does not match is not usable, said once on stderr and rendered again, never trusted.
 
 Variant: ``$PRTBENCH_MITSUBA_VARIANT`` if set, else the first of ``cuda_ad_rgb``,
 ``llvm_ad_rgb`` (with ``$DRJIT_LIBLLVM_PATH`` pointed at Debian's libLLVM-19 when unset),
@@ -361,7 +361,7 @@ def _load_cached(path: Path) -> Reference | None:
             raise ValueError("missing prtbench metadata")
         if meta.get(CHECKSUM_KEY) != reference_checksum(image, meta):
             raise ValueError("checksum of pixels and metadata does not match"
-                             if CHECKSUM_KEY in meta else "no checksum")
+                             if CHECKSUM_KEY in meta else "no checksum: written by an older prtbench")
         ref = Reference(image=image, spp=int(meta["spp"]), noise_rmse=float(meta["noise_rmse"]),
                         noise_rmse_display=float(meta["noise_rmse_display"]),
                         variant=meta["variant"], path=path, seconds=float(meta["seconds"]),
@@ -371,9 +371,11 @@ def _load_cached(path: Path) -> Reference | None:
             raise ValueError("image does not match its metadata")
     except Exception as exc:  # noqa: BLE001 - any failure means a corrupt or partial file
         # Said on stderr whatever the logging setup: the user sees why it renders again.
-        print(f"[prtbench] cached reference {path.name} is corrupt ({_one_line(exc)}); "
+        # Said once on stderr whatever the logging setup (a log.warning as well printed the
+        # same news twice under the CLI's stderr handler): the user sees why it renders again.
+        print(f"[prtbench] cached reference {path.name} is not usable ({_one_line(exc)}); "
               "rendering it again", file=sys.stderr, flush=True)
-        log.warning("discarding unreadable cached reference %s (%s)", path, _one_line(exc))
+        log.debug("discarded cached reference %s (%s)", path, _one_line(exc))
         path.unlink(missing_ok=True)
         return None
     return ref

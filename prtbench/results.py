@@ -15,6 +15,7 @@ Other modules may keep auxiliary tables in the same file: the schema check looks
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -22,7 +23,7 @@ import os
 import sqlite3
 import subprocess
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -299,12 +300,24 @@ class ResultsStore:
         values = [_row_values(row, number) for number, row in enumerate(rows)]  # before connecting
         insert = (f"INSERT INTO renders ({', '.join(COLUMNS)}) "
                   f"VALUES ({', '.join('?' for _ in COLUMNS)})")
+        with self.transaction() as conn:
+            for value in values:
+                conn.execute(insert, value)
+
+    @contextlib.contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One ``BEGIN IMMEDIATE`` ... ``COMMIT`` on this store: all statements or, on any error, none.
+
+        The connection has WAL, the busy timeout and a checked ``renders`` schema; other tables
+        (the measurement tables of :mod:`prtbench.measurements`) share the file and the lock.
+        """
+        if self.readonly:
+            raise PrtbenchError(f"results store '{self.path}' was opened read-only")
         conn = self._connect()
         try:
-            conn.execute("BEGIN IMMEDIATE")
+            conn.execute("BEGIN IMMEDIATE")  # outside the try: a failed BEGIN has nothing to roll back
             try:
-                for value in values:
-                    conn.execute(insert, value)
+                yield conn
                 conn.execute("COMMIT")
             except BaseException:
                 conn.execute("ROLLBACK")

@@ -56,7 +56,12 @@ def test_edited_entry_is_rerendered_and_said_on_stderr(cached, capsys, edit):
     second = reference.render_reference(scene, light, view, **ARGS)
     err = capsys.readouterr().err
     assert not second.cache_hit
-    assert "corrupt" in err and first.path.name in err and "rendering it again" in err
+    assert "not usable" in err and first.path.name in err and "rendering it again" in err
+    assert err.count(first.path.name) == 1, err  # said once, not once per handler
+    if edit == "no-checksum":
+        assert "older prtbench" in err
+    else:
+        assert "checksum of pixels and metadata does not match" in err
     # The same seeds render the same reference, with its true metadata, and store it again.
     assert second.spp == 8 and second.noise_rmse_display == first.noise_rmse_display
     assert np.allclose(second.image, first.image, atol=1e-6)
