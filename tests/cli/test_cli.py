@@ -26,6 +26,15 @@ def test_list_is_instant_and_imports_no_heavy_backend():
         assert name in out.stdout
 
 
+def test_python_dash_m_is_the_same_entry_point():
+    ok = subprocess.run([sys.executable, "-m", "prtbench", "list", "lights"], capture_output=True,
+                        text=True)
+    assert ok.returncode == 0 and "sky" in ok.stdout
+    bad = subprocess.run([sys.executable, "-m", "prtbench", "table", "9.9"], capture_output=True,
+                         text=True)
+    assert bad.returncode == 2 and "unknown table '9.9'" in bad.stderr
+
+
 @pytest.mark.parametrize("argv, fragment", [
     (["run", "--method", "vertx", "--scene", "plants"], "unknown method 'vertx'; did you mean 'vertex'?"),
     (["run", "--method", "vertex", "--scene", "plnts"], "unknown scene 'plnts'; did you mean 'plants'?"),
