@@ -23,20 +23,13 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from prtbench.errors import PrtbenchError
 from prtbench.parallel import available_cores
-from prtbench.raytrace import Tracer, offset_origins
-from prtbench.scene import get_scene
-from prtbench.transfer import RayPattern, compute_transfer
+from prtbench.transfer import compute_transfer
+
+from transfer_rays import transfer_rays
 
 ROUNDS = 7
 
-
-def _scene():
-    try:
-        return get_scene("plants")
-    except (PrtbenchError, ImportError):
-        return get_scene("sphere-over-plane")
 
 
 def _wall(fn) -> float:
@@ -49,32 +42,19 @@ def _wall(fn) -> float:
                          [(4, 256, 4096), (6, 1024, 1024), (10, 256, 4096)])
 def test_threaded_transfer_vs_one_raw_embree_call(benchmark, monkeypatch, bands, rays_per_point,
                                                   n_points):
-    scene = _scene()
     cores = available_cores()
-    positions, normals, _, _ = scene.merged()
-    pick = np.random.default_rng(0).choice(len(positions), size=min(n_points, len(positions)),
-                                           replace=False)
-    points = positions[pick].astype(np.float64)
-    normals = normals[pick].astype(np.float64)
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    tracer = Tracer.from_scene(scene)
-    n_rays = len(points) * rays_per_point
-
-    # Exactly the rays compute_transfer traces (same seeded pattern and origin offset).
-    pattern = RayPattern(len(points), rays_per_point, 0)
-    everything = slice(0, len(points))
-    dirs = pattern.world_directions(pattern.frames(normals, everything), everything).reshape(-1, 3)
-    origins = np.repeat(offset_origins(points, normals, diagonal=tracer.diagonal)
-                        .astype(np.float32), rays_per_point, axis=0)
+    rays = transfer_rays(n_points=n_points, rays_per_point=rays_per_point)
+    scene, tracer, points, normals = rays.scene, rays.tracer, rays.points, rays.normals
+    origins, dirs, n_rays = rays.origins, rays.directions, rays.n_rays
     halves = np.array_split(np.arange(n_rays), cores)
     split = [(np.ascontiguousarray(origins[h]), np.ascontiguousarray(dirs[h])) for h in halves]
 
     def raw():
-        return tracer._scene.run(origins, dirs, query="OCCLUDED")
+        return rays.raw_occluded()
 
     def raw_split():
         with ThreadPoolExecutor(cores) as pool:
-            list(pool.map(lambda od: tracer._scene.run(*od, query="OCCLUDED"), split))
+            list(pool.map(lambda od: rays.raw_occluded(*od), split))
 
     results = {}
 

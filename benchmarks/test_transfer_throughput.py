@@ -19,19 +19,12 @@ import time
 import numpy as np
 import pytest
 
-from prtbench.errors import PrtbenchError
-from prtbench.raytrace import Tracer, offset_origins
-from prtbench.scene import get_scene
-from prtbench.transfer import RayPattern, compute_transfer
+from prtbench.transfer import compute_transfer
+
+from transfer_rays import transfer_rays
 
 ROUNDS = 5
 
-
-def _scene():
-    try:
-        return get_scene("plants")
-    except (PrtbenchError, ImportError):
-        return get_scene("sphere-over-plane")
 
 
 def _timed(fn) -> tuple[float, float]:
@@ -50,25 +43,12 @@ def _interleaved(first, second, rounds: int = ROUNDS) -> np.ndarray:
                          [(4, 256, 4096), (6, 1024, 1024), (10, 256, 4096)])
 def test_transfer_vs_raw_embree_occlusion(benchmark, monkeypatch, bands, rays_per_point, n_points):
     monkeypatch.setenv("PRTBENCH_THREADS", "1")
-    scene = _scene()
-    positions, normals, _, _ = scene.merged()
-    pick = np.random.default_rng(0).choice(len(positions), size=min(n_points, len(positions)),
-                                           replace=False)
-    points = positions[pick].astype(np.float64)
-    normals = normals[pick].astype(np.float64)
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    tracer = Tracer.from_scene(scene)
-    n_rays = len(points) * rays_per_point
-
-    # Exactly the rays compute_transfer traces (same seeded pattern and origin offset).
-    pattern = RayPattern(len(points), rays_per_point, 0)
-    everything = slice(0, len(points))
-    dirs = pattern.world_directions(pattern.frames(normals, everything), everything).reshape(-1, 3)
-    origins = np.repeat(offset_origins(points, normals, diagonal=tracer.diagonal)
-                        .astype(np.float32), rays_per_point, axis=0)
+    rays = transfer_rays(n_points=n_points, rays_per_point=rays_per_point)
+    scene, tracer, points, normals = rays.scene, rays.tracer, rays.points, rays.normals
+    n_rays = rays.n_rays
 
     def raw():
-        return tracer._scene.run(origins, dirs, query="OCCLUDED")
+        return rays.raw_occluded()
 
     def transfer():
         return compute_transfer(scene, points, normals, bands=bands, rays_per_point=rays_per_point,
