@@ -519,7 +519,9 @@ def _orbit(lo: np.ndarray, hi: np.ndarray) -> list:
 
     center = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo)) / 2
-    distance = 1.1 * radius / math.sin(math.radians(ORBIT_FOV_DEG / 2))
+    # The bounding sphere fills the vertical field of view at the centre's depth (closer than
+    # the fully-enclosing R / sin(fov/2); a box's corners seldom reach its sphere).
+    distance = radius / math.tan(math.radians(ORBIT_FOV_DEG / 2))
     elevation = math.radians(ORBIT_ELEVATION_DEG)
     return list(Trajectory.orbit(center=tuple(map(float, center)),
                                  radius=distance * math.cos(elevation),
