@@ -165,6 +165,24 @@ def test_gltf_base_color_texture_is_linearised_kd(tmp_path):
     assert len(report.sidecars) >= 1
 
 
+def test_gltf_perspective_camera_becomes_the_view(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box(), node_name="box", geom_name="box")
+    scene.camera = trimesh.scene.Camera(resolution=(640, 480), fov=(64.0, 50.0))
+    # Camera at (0, 1, 5), turned 90° about +Y: it looks down world −X.
+    scene.camera_transform = (trimesh.transformations.translation_matrix([0, 1, 5])
+                              @ trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    path = tmp_path / "cam.glb"
+    scene.export(str(path))
+    built, report = read_scene_file(str(path), scale="2")
+    assert report.cameras == 1 and len(built.trajectory) == 1
+    view = built.trajectory.views[0]
+    np.testing.assert_allclose(view.eye, [0, 2, 10], atol=1e-6)  # moved by scale=2 too
+    np.testing.assert_allclose(np.subtract(view.target, view.eye), [-1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(view.up, [0, 1, 0], atol=1e-6)
+    assert view.fov_y == pytest.approx(50.0, abs=1e-4)
+
+
 def test_phong_exponent_from_roughness():
     assert phong_exponent(0.5) == pytest.approx(30.0)
     assert phong_exponent(1.0) == 1.0  # 2/1 − 2 = 0, clamped to 1
