@@ -78,6 +78,26 @@ def test_obj_mtl_materials_map_kd_ks_ns(tmp_path):
     assert get_scene(str(path), scale="2").name != diffuse.name
 
 
+def test_obj_map_kd_is_a_linear_kd_texture_times_kd(tmp_path):
+    pixels = np.array([[[255, 128, 0], [10, 200, 30]]], np.uint8)  # 1×2
+    Image.fromarray(pixels).save(tmp_path / "albedo.png")
+    (tmp_path / "quad.mtl").write_text("newmtl painted\nKd 0.5 1 1\nmap_Kd albedo.png\n")
+    (tmp_path / "quad.obj").write_text(
+        "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl painted\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    scene, report = read_scene_file(str(tmp_path / "quad.obj"))
+    kd = scene.objects[0].material.kd
+    assert isinstance(kd, Texture) and kd.image.shape == (1, 2, 3)
+    c = pixels.astype(np.float64) / 255
+    linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    np.testing.assert_allclose(kd.image, linear * [0.5, 1, 1], atol=2e-6)
+    assert scene.objects[0].mesh.uvs is not None
+    assert sorted(Path(p).name for p in report.sidecars) == ["albedo.png", "quad.mtl"]
+    # The texture is part of the identity: new pixels, new scene name.
+    Image.fromarray(pixels[:, ::-1].copy()).save(tmp_path / "albedo.png")
+    assert get_scene(str(tmp_path / "quad.obj")).name != scene.name
+
+
 def test_repairs_are_counted(tmp_path):
     a, b, c = trimesh.creation.box().faces[0] + 9  # OBJ indices of the matte cube's vertices
     # A degenerate face (repeated index), then a copy of the matte cube's first face.
@@ -322,3 +342,43 @@ def test_vertex_prt_on_a_gltf_file_beats_the_trivial_images(tmp_path):
     assert len(rows) == 2 and rows[0][0] == summary.scene
     assert '"file": "ball.glb"' in rows[0][1]
     assert read_scene_file(str(path))[1].sha256 in rows[0][1]
+
+
+def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tmp_path):
+    # plants (diffuse) written to glTF by trimesh, every node translated by t, its normals
+    # stored: the import is the built-in scene moved by t, so a camera moved by t sees the same
+    # geometry pixels, normals and materials (kd up to glTF's 8-bit colour factors).
+    from dataclasses import replace
+
+    from prtbench.runner import geometry_mask
+
+    builtin = get_scene("plants")
+    t = np.array([10.0, -2.0, 3.5])
+    out = trimesh.Scene()
+    for o in builtin.objects:
+        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
+                               process=False)
+        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
+        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
+        out.add_geometry(mesh, node_name=o.name, geom_name=o.name,
+                         transform=trimesh.transformations.translation_matrix(t))
+    path = tmp_path / "plants.glb"
+    out.export(str(path))
+    imported, report = read_scene_file(str(path))
+    assert report.normals_computed == 0 and report.degenerate_faces == 0
+    assert imported.n_triangles == builtin.n_triangles
+    by_name = {o.name: o for o in imported.objects}
+    for o in builtin.objects:
+        m = by_name[o.name]
+        # Compared corner by corner: unused vertices of the built-in mesh are dropped.
+        mine, theirs = m.mesh.faces, o.mesh.faces
+        np.testing.assert_allclose(m.mesh.positions[mine], o.mesh.positions[theirs] + t,
+                                   atol=2e-5)
+        np.testing.assert_allclose(m.mesh.normals[mine], o.mesh.normals[theirs], atol=1e-5)
+        np.testing.assert_allclose(m.material.kd, o.material.kd, atol=0.5 / 255 + 1e-9)
+    for view in builtin.trajectory.views[:3]:
+        moved = replace(view, eye=tuple(np.add(view.eye, t)), target=tuple(np.add(view.target, t)))
+        a = geometry_mask(builtin, view, 64, 48)
+        b = geometry_mask(imported, moved, 64, 48)
+        assert a.sum() > 500 and np.mean(a != b) < 0.002  # edge pixels may flip in float32
