@@ -111,8 +111,11 @@ def _reference(args: argparse.Namespace) -> int:
     from .runner import parse_resolution, resolve_views
     from .scene import get_scene
 
+    from .config import parse_overrides
+
     profile = get_profile(args.profile)
-    scene = get_scene(args.scene, variant=args.variant)
+    scene = get_scene(args.scene, variant=args.variant,
+                      **parse_overrides(getattr(args, "scene_param", None) or []))
     light = get_light(args.light or scene.default_light)
     scene = resolve_views(scene, profile, args.views)  # the validator `run` uses
     width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
@@ -376,6 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("reference", help="render (and cache) Mitsuba path-traced references")
     p.add_argument("--scene", required=True)
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
+                   help="scene builder parameter")
     p.add_argument("--variant", default="diffuse")
     p.add_argument("--light", default=None)
     p.add_argument("--views", type=int, default=None)

@@ -210,9 +210,10 @@ def test_phong_exponent_from_roughness():
     assert phong_exponent(0.3) == pytest.approx(2 / 0.09 ** 2 - 2)
 
 
-def test_ply_gets_default_materials_and_angle_weighted_normals(tmp_path):
+@pytest.mark.parametrize("suffix", [".ply", ".off"])
+def test_ply_gets_default_materials_and_angle_weighted_normals(tmp_path, suffix):
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
-    path = tmp_path / "ball.ply"
+    path = tmp_path / f"ball{suffix}"
     sphere.export(str(path))
     scene, report = read_scene_file(str(path))
     assert scene.n_triangles == 320 and len(scene.objects) == 1
@@ -382,3 +383,13 @@ def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tm
         a = geometry_mask(builtin, view, 64, 48)
         b = geometry_mask(imported, moved, 64, 48)
         assert a.sum() > 500 and np.mean(a != b) < 0.002  # edge pixels may flip in float32
+
+
+def test_scene_params_reach_file_scenes_from_run_and_reference(tmp_path, capsys):
+    path = tmp_path / "small.stl"
+    trimesh.creation.box().export(str(path))
+    for command in (["run", "--method", "vertex"], ["reference"]):
+        argv = command + ["--scene", str(path), "--scene-param", "up=x"]
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("prtbench: error: ") and "up='x'; accepted: y, z" in err, err
