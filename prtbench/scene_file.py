@@ -223,6 +223,8 @@ def _sidecars(file: Path, label: str) -> list[Path]:
                 side = file.parent / _unquote(uri)
                 if not side.is_file():
                     raise InvalidInputError(f"{label}: its {kind[:-1]} '{uri}' is missing")
+                if kind == "images":
+                    _check_image(side, label)
                 found.append(side)
     elif suffix == ".obj":
         for mtl in _directives(file, "mtllib"):
@@ -232,8 +234,21 @@ def _sidecars(file: Path, label: str) -> list[Path]:
                 for tex in _directives(side, "map_kd", "map_ks", "map_ns", "norm", "map_bump",
                                        "bump"):
                     if (file.parent / tex).is_file():
+                        _check_image(file.parent / tex, label)
                         found.append(file.parent / tex)
     return found
+
+
+def _check_image(path: Path, label: str) -> None:
+    """Refuse an image file PIL cannot decode (trimesh would silently drop the texture)."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as img:
+            img.load()
+    except Exception as exc:  # PIL raises several kinds for truncated or foreign data
+        raise InvalidInputError(f"{label}: texture '{path.name}' cannot be decoded "
+                                f"({type(exc).__name__})") from None
 
 
 def _unquote(uri: str) -> str:
@@ -445,6 +460,8 @@ def _pbr(mat, glossy: bool, has_uv: bool, report: ImportReport, node: str):
     name = str(mat.name or node)
     base = np.asarray(_rgb(mat.baseColorFactor, 1.0))
     metallic = 1.0 if mat.metallicFactor is None else float(np.clip(mat.metallicFactor, 0, 1))
+    if mat.metallicFactor is None:
+        report.warnings.append(f"{node}: no metallicFactor, glTF's default 1 (metal) gives kd 0")
     roughness = 1.0 if mat.roughnessFactor is None else float(np.clip(mat.roughnessFactor, 0, 1))
     kd = tuple(float(c) for c in base * (1.0 - metallic))
     ks = tuple(float(c) for c in 0.04 * (1.0 - metallic) + base * metallic)

@@ -254,6 +254,11 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
     gltf = _two_node_gltf(tmp_path / "nobuf.gltf")
     for p in tmp_path.glob("*.bin"):
         p.unlink()
+    (tmp_path / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n not really")
+    (tmp_path / "badtex.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd broken.png\n")
+    (tmp_path / "badtex.obj").write_text(
+        "mtllib badtex.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+        "f 1/1 2/2 3/3\n")
     small = tmp_path / "small.stl"
     trimesh.creation.box().export(str(small))
     return [
@@ -263,6 +268,7 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
         (str(cloud), {}, "no triangles"),
         (str(nan_obj), {}, "NaN/Inf vertex positions"),
         (str(gltf), {}, "is missing"),
+        (str(tmp_path / "badtex.obj"), {}, "texture 'broken.png' cannot be decoded"),
         (str(small), {"scale": "1e-9"}, "hint: --scene-param scale="),
         (str(small), {"scale": "1e7"}, "bounds diagonal"),
         (str(small), {"up": "x"}, "accepted: y, z"),
