@@ -307,7 +307,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _scene_info(args: argparse.Namespace) -> int:
     from .config import parse_overrides
-    from .scene_file import read_scene_file
+    from .scenefile import read_scene_file
 
     scene, report = read_scene_file(args.path, variant=args.variant,
                                     **parse_overrides(args.scene_param or []))

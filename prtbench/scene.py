@@ -376,7 +376,7 @@ class _SceneRegistry(Registry):
     """The scene registry; :meth:`check` also accepts asset file paths (DESIGN.md §16)."""
 
     def check(self, name: str) -> str:
-        from .scene_file import is_scene_path
+        from .scenefile import is_scene_path
 
         return name if is_scene_path(name) else super().check(name)
 
@@ -407,10 +407,10 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
     """Build the registered scene ``name`` in material ``variant`` with builder ``params``.
 
     A ``name`` ending in .glb/.gltf/.obj/.ply/.off/.stl (or a path to an existing file) is
-    imported from that file instead (:mod:`prtbench.scene_file`; params ``scale``, ``up``,
+    imported from that file instead (:mod:`prtbench.scenefile`; params ``scale``, ``up``,
     ``ground``).
     """
-    from .scene_file import build_file_scene, is_scene_path
+    from .scenefile import build_file_scene, is_scene_path
 
     if is_scene_path(name):
         return build_file_scene(name, variant=variant, **params)

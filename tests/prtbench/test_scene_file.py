@@ -14,7 +14,7 @@ from PIL import Image  # noqa: E402
 from prtbench.cli import main  # noqa: E402
 from prtbench.errors import InvalidInputError  # noqa: E402
 from prtbench.scene import SCENES, Texture, get_scene  # noqa: E402
-from prtbench.scene_file import phong_exponent, read_scene_file  # noqa: E402
+from prtbench.scenefile import phong_exponent, read_scene_file  # noqa: E402
 
 # Two unit cubes, one per material; face 13 repeats an index (degenerate), face 14 repeats
 # face 1 (duplicate).
