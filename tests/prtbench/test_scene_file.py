@@ -116,19 +116,20 @@ def test_repairs_are_counted(tmp_path):
     assert report.non_manifold_edges == 1 and scene.n_triangles == 25
 
 
-def _pbr_box(*, texture: Image.Image | None = None):
+def _pbr_box(*, texture: Image.Image | None = None, normals: Image.Image | None = None):
     material = trimesh.visual.material.PBRMaterial(
         baseColorFactor=[204, 102, 51, 255], metallicFactor=0.25, roughnessFactor=0.5,
-        baseColorTexture=texture, name="clay")
+        baseColorTexture=texture, normalTexture=normals, name="clay")
     box = trimesh.creation.box()
     uv = np.random.default_rng(0).uniform(0, 1, (len(box.vertices), 2))
     box.visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
     return box
 
 
-def _two_node_gltf(path: Path, *, texture: Image.Image | None = None) -> Path:
+def _two_node_gltf(path: Path, *, texture: Image.Image | None = None,
+                   normals: Image.Image | None = None) -> Path:
     scene = trimesh.Scene()
-    box = _pbr_box(texture=texture)
+    box = _pbr_box(texture=texture, normals=normals)
     for node, x in (("left", -2.0), ("right", 3.0)):
         scene.add_geometry(box, node_name=node, geom_name="box",
                            transform=trimesh.transformations.translation_matrix([x, 0.5, 0]))
@@ -174,7 +175,9 @@ def test_gltf_metallic_roughness_mapping_and_node_transforms(tmp_path):
 
 def test_gltf_base_color_texture_is_linearised_kd(tmp_path):
     pixels = np.array([[[255, 0, 0], [0, 128, 0]], [[0, 0, 64], [255, 255, 255]]], np.uint8)
-    path = _two_node_gltf(tmp_path / "tex.gltf", texture=Image.fromarray(pixels))
+    bumps = np.array([[[128, 128, 255], [200, 128, 220]]], np.uint8)
+    path = _two_node_gltf(tmp_path / "tex.gltf", texture=Image.fromarray(pixels),
+                          normals=Image.fromarray(bumps))
     assert any(p.suffix == ".bin" for p in tmp_path.iterdir())  # external buffer really used
     scene, report = read_scene_file(str(path), variant="glossy")
     kd = scene.objects[0].material.kd
@@ -183,6 +186,10 @@ def test_gltf_base_color_texture_is_linearised_kd(tmp_path):
     linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
     np.testing.assert_allclose(kd.image, linear * np.array([0.8, 0.4, 0.2]) * 0.75, atol=2e-6)
     assert len(report.sidecars) >= 1
+    # normalTexture → the normal map, kept linear (no sRGB decoding of vectors).
+    normal_map = scene.objects[0].material.normal_map
+    assert isinstance(normal_map, Texture)
+    np.testing.assert_allclose(normal_map.image, bumps[::-1] / 255.0, atol=1e-6)
 
 
 def test_gltf_perspective_camera_becomes_the_view(tmp_path):
