@@ -1,7 +1,7 @@
 """The ``prtbench`` command.
 
 Subcommands: ``list``, ``assets``, ``run``, ``reference``, ``results``, ``table``, ``pareto``,
-``regress``.
+``regress``, ``scene info``.
 User mistakes print one line (``prtbench: error: …``) and exit with status 2. Heavy modules
 (torch, moderngl, embreex, mitsuba) are imported only by the subcommands that need them, so
 ``prtbench list`` is instant.
@@ -111,8 +111,11 @@ def _reference(args: argparse.Namespace) -> int:
     from .runner import parse_resolution, resolve_views
     from .scene import get_scene
 
+    from .config import parse_overrides
+
     profile = get_profile(args.profile)
-    scene = get_scene(args.scene, variant=args.variant)
+    scene = get_scene(args.scene, variant=args.variant,
+                      **parse_overrides(getattr(args, "scene_param", None) or []))
     light = get_light(args.light or scene.default_light)
     scene = resolve_views(scene, profile, args.views)  # the validator `run` uses
     width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
@@ -302,6 +305,42 @@ def _sweep(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _scene_info(args: argparse.Namespace) -> int:
+    from .config import parse_overrides
+    from .scenefile import read_scene_file
+
+    scene, report = read_scene_file(args.path, variant=args.variant,
+                                    **parse_overrides(args.scene_param or []))
+    lo, hi = scene.bounds()
+
+    def value(v) -> str:
+        return v.name if hasattr(v, "image") else (
+            f"{v:g}" if isinstance(v, float) else "(" + ", ".join(f"{c:.3f}" for c in v) + ")")
+
+    print(f"scene {scene.name} ({scene.variant}) from {report.path}, sha256 {report.sha256[:16]}"
+          + (f" (+ {len(report.sidecars)} sidecar files)" if report.sidecars else ""))
+    print(f"  {len(scene.objects)} objects, {scene.n_triangles} triangles, "
+          f"{scene.n_vertices} vertices")
+    print(f"  bounds ({', '.join(f'{c:.4g}' for c in lo)}) .. ({', '.join(f'{c:.4g}' for c in hi)})"
+          f", diagonal {scene.diagonal():.4g}")
+    print(f"  views: {f'{report.cameras} from the file' if report.cameras else ''}"
+          f"{'' if report.cameras else f'{len(scene.trajectory)}-view orbit'}; "
+          f"default light {scene.default_light}")
+    print(f"  repaired: {report.degenerate_faces} degenerate and {report.duplicate_faces} "
+          f"duplicate faces removed, normals computed for {report.normals_computed} objects; "
+          f"{report.non_manifold_edges} non-manifold edges (kept)")
+    for o in scene.objects:
+        m = o.material
+        print(f"  object {o.name}: {o.mesh.n_triangles} tris, material {m.name}: kd {value(m.kd)}"
+              f" ks {value(m.ks)} s {value(m.shininess)}"
+              f"{f' normal map {m.normal_map.name}' if m.normal_map is not None else ''}")
+    for line in report.skipped:
+        print(f"  skipped: {line}")
+    for line in report.warnings:
+        print(f"  warning: {line}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="prtbench", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -340,6 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("reference", help="render (and cache) Mitsuba path-traced references")
     p.add_argument("--scene", required=True)
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
+                   help="scene builder parameter")
     p.add_argument("--variant", default="diffuse")
     p.add_argument("--light", default=None)
     p.add_argument("--views", type=int, default=None)
@@ -440,6 +481,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default=None, help="results database of the verification run")
     p.add_argument("--quiet", action="store_true", help="no per-cell progress lines")
     p.set_defaults(func=_advise)
+
+    p = sub.add_parser("scene", help="inspect an asset file as a prtbench scene")
+    scene_sub = p.add_subparsers(dest="scene_command", required=True)
+    p = scene_sub.add_parser("info", help="counts, bounds, mapped materials and repairs of a file")
+    p.add_argument("path", help=".glb/.gltf/.obj/.ply/.off/.stl file")
+    p.add_argument("--variant", default="diffuse", help="material variant: diffuse or glossy")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
+                   help="import parameter: scale=<float>, up=y|z, ground=true|false")
+    p.set_defaults(func=_scene_info)
     return parser
 
 

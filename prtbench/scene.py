@@ -371,8 +371,18 @@ class Scene:
 
 SceneBuilder = Callable[..., Scene]
 
+
+class _SceneRegistry(Registry):
+    """The scene registry; :meth:`check` also accepts asset file paths (DESIGN.md §16)."""
+
+    def check(self, name: str) -> str:
+        from .scenefile import is_scene_path
+
+        return name if is_scene_path(name) else super().check(name)
+
+
 #: Scene builders: ``build(*, variant="diffuse", **params) -> Scene``.
-SCENES: Registry[SceneBuilder] = Registry("scene", entry_point_group="prtbench.scenes")
+SCENES: Registry[SceneBuilder] = _SceneRegistry("scene", entry_point_group="prtbench.scenes")
 
 
 def register_scene(name: str, *, params: dict[str, Any] | None = None,
@@ -394,7 +404,16 @@ VARIANTS = ("diffuse", "glossy")
 
 
 def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
-    """Build the registered scene ``name`` in material ``variant`` with builder ``params``."""
+    """Build the registered scene ``name`` in material ``variant`` with builder ``params``.
+
+    A ``name`` ending in .glb/.gltf/.obj/.ply/.off/.stl (or a path to an existing file) is
+    imported from that file instead (:mod:`prtbench.scenefile`; params ``scale``, ``up``,
+    ``ground``).
+    """
+    from .scenefile import build_file_scene, is_scene_path
+
+    if is_scene_path(name):
+        return build_file_scene(name, variant=variant, **params)
     builder = SCENES.get(name)
     if variant not in VARIANTS:
         raise InvalidInputError(f"unknown variant '{variant}'; known: {', '.join(VARIANTS)}")

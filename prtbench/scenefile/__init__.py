@@ -1,0 +1,166 @@
+"""Scenes from asset files (DESIGN.md §16): glTF/GLB, OBJ+MTL, PLY, OFF and STL via trimesh.
+
+``get_scene(path, variant=..., scale=..., up=..., ground=...)`` builds a :class:`Scene` of the
+same kind as the built-in ones: world-space objects with §4 materials, a 30-view orbit (or the
+file's camera), default light ``sky``.
+
+Import
+------
+- Every mesh node of the file's scene graph becomes one object, its vertices moved by the
+  node's ``world_from_object`` transform (normals by its inverse transpose; a mirroring
+  transform flips the winding so faces stay front-facing).
+- ``up=z`` turns +Z-up files into our +Y up (x, y, z) → (x, z, −y); ``scale`` multiplies
+  positions after that. Nothing else is normalised: file units are scene units.
+- Repairs, counted in :class:`ImportReport`: degenerate faces (repeated indices or zero area)
+  and duplicate faces are removed, unused vertices dropped, vertex normals computed
+  (angle-weighted) where the file has none. Non-manifold edges (shared by more than two
+  faces) are counted and reported, not fatal. Vertices are never welded (UV seams stay).
+- ``ground=true`` adds the papers' two-triangle ground plane (kd 0.6, facing +Y) under the
+  bounds, twice the larger horizontal extent wide.
+
+Material mapping onto the one BRDF of §4 (kd, ks, Phong exponent s)
+--------------------------------------------------------------------
+===================  =====================================================================
+source               mapping
+===================  =====================================================================
+OBJ/MTL              kd = Kd, ks = Ks, s = Ns (clamped to [0, 10⁴]);
+                     map_Kd → kd texture (sRGB decoded to linear, times Kd when given)
+glTF metallic-       kd = baseColor·(1 − metallic), ks = mix(0.04, baseColor, metallic),
+roughness            α = roughness², s = 2/α² − 2 clamped to [1, 10⁴];
+                     baseColorTexture → kd texture (sRGB → linear, times the kd factor);
+                     normalTexture → normal map; glTF defaults metallic = roughness = 1.
+                     metallicRoughnessTexture and emissive are ignored with a warning.
+no material          diffuse kd = 0.7; variant ``glossy``: kd = 0.7, ks = 0.3, s = 64
+(PLY/OFF/STL, …)     (vertex colours are ignored with a warning)
+===================  =====================================================================
+
+The ``diffuse`` variant keeps kd only (ks = 0) for every material, as the built-in scenes'
+diffuse variants do, so diffuse-only methods run on any file; ``glossy`` keeps the mapped ks
+and s. Colour factors pass through trimesh as 8-bit values (steps of 1/255).
+
+Identity
+--------
+The scene name is ``<file stem>-<10 hex digits>``: a content hash of the file's bytes, of its
+sidecar files (an OBJ's ``.mtl`` and texture maps, a ``.gltf``'s external buffers and images)
+and of the import parameters, so every cache keyed by :meth:`Scene.content_hash` (artifacts,
+transfer, references) keys on the file's content; ``params`` records the file name and hash
+for the results store.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import scene_params as P
+from ..cache import content_key
+from ..errors import InvalidInputError
+from .materials import DEFAULT_KD, GLOSSY_DEFAULT, phong_exponent
+from .report import ImportReport
+
+__all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
+           "build_file_scene", "is_scene_path", "phong_exponent", "read_scene_file"]
+
+#: File suffixes read as scenes (lower case).
+SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off", ".stl")
+#: Bump when the import changes what a file builds (invalidates every file scene's caches).
+FILE_SCENE_VERSION = 1
+#: Bounds diagonal accepted after ``scale`` (wider than this cannot be right for any asset).
+MIN_DIAGONAL, MAX_DIAGONAL = 1e-6, 1e6
+#: The import parameters (``--scene-param``), checked by :func:`prtbench.scene_params.check_params`.
+PARAMS = {"scale": P.length(low=0.0, high=1e12), "up": P.choice("y", "z"), "ground": P.flag()}
+DEFAULTS = {"scale": 1.0, "up": "y", "ground": False}
+
+
+def is_scene_path(name: str) -> bool:
+    """Whether ``--scene name`` means a file: an accepted suffix, or a path to an existing file.
+
+    A bare word (``plants``) stays a registry name even if a file of that name exists here.
+    """
+    text = str(name)
+    if text.lower().endswith(SUFFIXES):
+        return True
+    return ("/" in text or "\\" in text) and Path(text).exists()
+
+
+def build_file_scene(path: str, *, variant: str = "diffuse", **params: Any):
+    """The :class:`~prtbench.scene.Scene` of the asset file ``path``.
+
+    Parameters
+    ----------
+    path : str
+        A .glb/.gltf/.obj/.ply/.off/.stl file.
+    variant : {"diffuse", "glossy"}
+    **params
+        ``scale`` (float > 0), ``up`` ("y" or "z"), ``ground`` (bool); strings are parsed.
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming the file and the problem (see :func:`read_scene_file`).
+    """
+    return read_scene_file(path, variant=variant, **params)[0]
+
+
+def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
+    """Import ``path``; returns ``(scene, report)``. Writes nothing.
+
+    Raises
+    ------
+    InvalidInputError
+        Missing file, unsupported suffix, unknown parameter, a file trimesh cannot parse, a
+        glTF whose buffer or image is missing, no triangles, NaN/Inf positions, or a bounds
+        diagonal outside [1e-6, 1e6] after ``scale``.
+    """
+    from ..scene import VARIANTS, Scene, Trajectory
+    from ..scene_params import check_extent, check_params
+    from .reader import load, objects_of, sidecars
+    from .views import bounds_of, file_views, ground, orbit
+
+    file = Path(path)
+    label = f"scene file '{path}'"
+    if variant not in VARIANTS:
+        raise InvalidInputError(f"unknown variant '{variant}'; known: {', '.join(VARIANTS)}")
+    for key in params:
+        if key not in PARAMS:
+            raise InvalidInputError(f"{label} has no parameter '{key}'; accepted: "
+                                    f"{', '.join(PARAMS)}")
+    values = {**DEFAULTS, **check_params(str(path), PARAMS, params)}
+    if file.suffix.lower() not in SUFFIXES:
+        raise InvalidInputError(f"{label}: unsupported extension '{file.suffix}'; accepted: "
+                                f"{', '.join(SUFFIXES)}")
+    if not file.is_file():
+        raise InvalidInputError(f"{label}: no such file")
+    sidecars = sidecars(file, label)
+    digest = hashlib.sha256()
+    for f in [file, *sidecars]:
+        digest.update(f.name.encode() + b"\0" + f.read_bytes())
+    report = ImportReport(path=str(path), sha256=digest.hexdigest(),
+                          sidecars=[str(s) for s in sidecars])
+
+    tm_scene = load(file, label)
+    objects = objects_of(tm_scene, values, variant, label, report)
+    lo, hi = bounds_of(objects)
+    diag = float(np.linalg.norm(hi - lo))
+    if not MIN_DIAGONAL <= diag <= MAX_DIAGONAL:
+        hint = 2.0 / diag if diag > 0 else None
+        raise InvalidInputError(
+            f"{label}: bounds diagonal {diag:.3g} after scale={values['scale']:g}; accepted: "
+            f"{MIN_DIAGONAL:g}..{MAX_DIAGONAL:g}"
+            + (f" (hint: --scene-param scale={hint:.3g} makes it about 2)" if hint else ""))
+    if values["ground"]:
+        objects.append(ground(lo, hi, variant))
+    views = file_views(tm_scene, values)
+    report.cameras = len(views)
+    if not views:
+        views = orbit(lo, hi)
+    key = content_key("scene-file", FILE_SCENE_VERSION, report.sha256, values)
+    name = f"{file.stem}-{key[:10]}"
+    scene = Scene(name, objects, variant=variant, default_light="sky",
+                  trajectory=Trajectory(tuple(views)), exposure=0.7,
+                  params={"file": file.name, "file_sha256": report.sha256, **values})
+    check_extent(scene, values)
+    return scene, report
