@@ -281,14 +281,18 @@ class SloanMatrix(_GlossyVertexMethod):
         super().validate(scene, config)
         size = matrix_bytes(scene.n_vertices, config.sh_bands)
         if size > config.max_bytes:
+            # The limit is stated in vertices (what the buffer grows with); the scene's
+            # triangles are named too, since that is the count an asset tool shows.
+            limit = config.max_bytes // matrix_bytes(1, config.sh_bands)
             fit = max((b for b in range(1, config.sh_bands) if
                        matrix_bytes(scene.n_vertices, b) <= config.max_bytes), default=None)
-            hint = f"use sh_bands={fit} or fewer" if fit else "use a coarser mesh"
+            hint = f"use sh_bands={fit} or fewer, a coarser mesh" if fit else "use a coarser mesh"
             raise InvalidInputError(
-                f"sloan-matrix with sh_bands={config.sh_bands} on scene '{scene.name}' needs "
-                f"{_format_bytes(size)} of transfer matrices ({scene.n_vertices} vertices × "
-                f"{config.sh_bands**4} floats), over max_bytes={_format_bytes(config.max_bytes)}; "
-                f"{hint}, or raise max_bytes")
+                f"scene '{scene.name}' has {scene.n_triangles} triangles / {scene.n_vertices} "
+                f"vertices, over sloan-matrix's limit of {limit} vertices at "
+                f"sh_bands={config.sh_bands} (max_bytes={_format_bytes(config.max_bytes)} of "
+                f"transfer matrices, V × {config.sh_bands**4} floats; this scene needs "
+                f"{_format_bytes(size)}); {hint}, or raise max_bytes")
 
     @classmethod
     def precompute(cls, scene, config: SloanMatrixConfig, *, progress: bool = True) -> Artifact:

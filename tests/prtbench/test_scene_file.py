@@ -406,3 +406,22 @@ def test_scene_params_reach_file_scenes_from_run_and_reference(tmp_path, capsys)
         assert main(argv) == 2
         err = capsys.readouterr().err.strip()
         assert err.startswith("prtbench: error: ") and "up='x'; accepted: y, z" in err, err
+
+
+def test_file_scene_over_sloan_matrix_limit_is_refused_naming_the_limit(tmp_path, capsys):
+    # Icosphere subdivision 7: 163842 vertices; at sh_bands=8 a vertex's matrix is 8⁴ floats,
+    # so 2 GiB (the default max_bytes) holds 131072 vertices: the file is over the limit.
+    path = tmp_path / "big.ply"
+    trimesh.creation.icosphere(subdivisions=7).export(str(path))
+    before = _cache_files()
+    argv = ["run", "--method", "sloan-matrix", "--scene", str(path), "--set", "sh_bands=8",
+            "--profile", "smoke", "--results", str(tmp_path / "r.sqlite"),
+            "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("prtbench: error: ") and "\n" not in err, err
+    assert "327680 triangles / 163842 vertices" in err, err
+    assert "limit of 131072 vertices at sh_bands=8" in err and "use sh_bands=7 or fewer" in err
+    assert "big-" in err  # the file scene's name
+    assert _cache_files() == before
+    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
