@@ -228,6 +228,7 @@ def _analyze(args: argparse.Namespace) -> int:
 def _advise(args: argparse.Namespace) -> int:
     from . import outputs, strict_json
     from .cache import atomic_path
+    from .config import parse_overrides
     from .tradeoff.advise import advise, format_advice
 
     if args.json:
@@ -235,6 +236,7 @@ def _advise(args: argparse.Namespace) -> int:
     advice = advise(args.scene, args.light, target=args.target, budget=args.budget,
                     cost=args.cost, profile=args.profile, variant=args.variant,
                     light_changes=args.light_changes, methods=args.method or None,
+                    scene_params=parse_overrides(args.scene_param or []),
                     results_path=Path(args.results) if args.results else None,
                     band_margin=args.band_margin, echo=not args.quiet)
     print(format_advice(advice))
@@ -480,6 +482,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="write the answer as JSON here")
     p.add_argument("--results", default=None, help="results database of the verification run")
     p.add_argument("--quiet", action="store_true", help="no per-cell progress lines")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
     p.set_defaults(func=_advise)
 
     p = sub.add_parser("scene", help="inspect an asset file as a prtbench scene")

@@ -192,7 +192,8 @@ def parse_cost_kind(kind: str) -> str:
 def advise(scene: str, light: str | None = None, *, target: str | Sequence[Constraint],
            budget: str | Sequence[Constraint] | None = None, cost: str = "frame_ms",
            profile: str = "quick", variant: str = "diffuse", light_changes: str = "none",
-           analysis: Any = None, evaluate: Callable | None = None,
+           scene_params: Mapping[str, Any] | None = None, analysis: Any = None,
+           evaluate: Callable | None = None,
            cost_fn: Callable[[Mapping, str], float] | None = None,
            verify: Callable | None = None, methods: Sequence[str] | None = None,
            results_path: Path | None = None, band_margin: int = 2, keep_fraction: float = 0.5,
@@ -211,6 +212,9 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         The profile of the answer (searches start at ``smoke`` when it is larger).
     variant, light_changes : str
         Material variant; how the lights will change (passed to the analysis).
+    scene_params : mapping, optional
+        Scene builder parameters (``--scene-param``; a file scene's ``scale``/``up``/``ground``),
+        checked when the scene is built and passed to every evaluated cell.
     analysis : SceneAnalysis-like, optional
         Default: :func:`prtbench.tradeoff.analyze.analyze_scene`.
     evaluate : callable ``(cells, *, profile) -> list``, optional
@@ -237,8 +241,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     Raises
     ------
     PrtbenchError
-        Bad scene, light, variant, profile, expressions, cost kind or results store (all
-        checked before any work).
+        Bad scene, scene parameter, light, variant, profile, expressions, cost kind or results
+        store (all checked before any work).
     """
     from .. import outputs
     from ..lights import get_light
@@ -262,7 +266,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     SCENES.check(scene)
     for name in methods or ():
         METHODS.check(name)
-    scene_obj = get_scene(scene, variant=variant)
+    scene_params = dict(scene_params or {})
+    scene_obj = get_scene(scene, variant=variant, **scene_params)
     light_obj = get_light(light or scene_obj.default_light)
     cost_fn = cost_fn or _default_cost_fn()
     if cost_fn is _row_cost:
@@ -288,7 +293,7 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
 
     def cell(c: Candidate) -> Cell:
         return Cell(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
-                    light=light, overrides=c.overrides)
+                    light=light, overrides=c.overrides, scene_params=scene_params)
 
     def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:
         results = list(evaluate([cell(c) for c in batch], profile=at))

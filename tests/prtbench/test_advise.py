@@ -376,6 +376,8 @@ def test_cli_unreachable_target_exits_1_with_the_closest_and_a_hint(tmp_path, mo
     (["--target", "psnr_masked>=28", "--cost", "joules"], "unknown cost kind 'joules'"),
     (["--target", "psnr_masked>=28", "--method", "vertx"], "unknown method 'vertx'"),
     (["--target", "psnr_masked>=28", "--json", "."], "--json '.' is a folder"),
+    (["--target", "psnr_masked>=28", "--scene-param", "radius=-1"],
+     "scene 'sphere-over-plane' parameter radius='-1'; accepted: finite numbers in (0,"),
 ])
 def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, monkeypatch, capsys, extra, fragment):
     from prtbench.cli import main
@@ -390,6 +392,30 @@ def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, monkeypatch, capsys,
     assert code == 2 and fragment in err and err.startswith("prtbench: error: ")
     assert err.count("\n") == 1 and calls == []
     assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_scene_params_reach_the_scene_and_every_cell(tmp_path, monkeypatch, capsys):
+    from prtbench.cli import main
+
+    scenes = []
+    monkeypatch.setattr(advise_mod, "_default_analysis", lambda scene, light, *, light_changes:
+                        scenes.append(scene) or analysis(required_bands=2))
+    cells = []
+
+    def evaluate(batch, *, profile, **_):
+        cells.extend(batch)
+        return Recorder()(batch, profile=profile)
+
+    monkeypatch.setattr(advise_mod, "serial_evaluate", evaluate)
+    code = main(["advise", "--scene", "sphere-over-plane", "--scene-param", "radius=0.3",
+                 "--target", "psnr_masked>=24", "--method", "vertex", "--profile", "smoke",
+                 "--results", str(tmp_path / "r.sqlite"), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    (scene,) = scenes
+    assert scene.params["radius"] == pytest.approx(0.3)
+    assert scene.content_hash() != get_scene("sphere-over-plane").content_hash()
+    # Screening and verification cells carry the parameter to their runs.
+    assert len(cells) >= 2 and all(dict(c.scene_params) == {"radius": "0.3"} for c in cells)
 
 
 def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
