@@ -425,3 +425,50 @@ def test_file_scene_over_sloan_matrix_limit_is_refused_naming_the_limit(tmp_path
     assert "big-" in err  # the file scene's name
     assert _cache_files() == before
     assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
+
+
+def test_plants_exported_to_glb_measures_as_the_builtin_plants_for_vertex(tmp_path):
+    # plants (diffuse, procedural: no fetched asset, ~5 s) written to GLB by trimesh (positions
+    # and normals as stored, kd through glTF's 8-bit factors), imported, and run with vertex at
+    # smoke on the built-in's views and exposure. Each is measured against its own path
+    # reference (a separate cache entry: the file scene hashes differently), so the two masked
+    # PSNRs may differ by the references' Monte-Carlo noise and the kd rounding (≤ 0.5/255).
+    # 1 dB is the issue's acceptance bound for an imported scene; measured: 0.001 dB.
+    import copy
+
+    from prtbench.regress import gate
+    from prtbench.runner import RunRequest, execute, prepare
+
+    # vertex's own regression case: a subdivided ground under the sun, where the shadows are
+    # what is measured (under sky, at 1 view, vertex does not beat the unshadowed image here).
+    params = {"ground_subdivisions": 32}
+    builtin = get_scene("plants", **params)
+    out = trimesh.Scene()
+    for o in builtin.objects:
+        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
+                               process=False)
+        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
+        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
+        out.add_geometry(mesh, node_name=o.name, geom_name=o.name)
+    path = tmp_path / "plants.glb"
+    out.export(str(path))
+
+    psnr = {}
+    for scene in ("plants", str(path)):
+        request = RunRequest(method="vertex", scene=scene, profile="smoke", views=1, light="sun",
+                             out_dir=None, write_images=False, store_results=False,
+                             scene_params=params if scene == "plants" else {})
+        prepared = prepare(request)
+        if scene != "plants":
+            assert prepared.scene.name.startswith("plants-")  # really the imported file
+            moved = copy.copy(prepared.scene)
+            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
+            prepared.scene = moved.with_views(1)
+        summary = execute(prepared, progress=False, echo=False)
+        assert summary.status == "ok"
+        psnr[scene] = summary.mean_metrics()["psnr_masked"]
+        if scene == "plants":  # a measurement, not noise: it beats the trivial images
+            assert not gate(request, summary.mean_metrics())
+    print(f"masked PSNR built-in {psnr['plants']:.3f} dB, imported {psnr[str(path)]:.3f} dB")
+    assert abs(psnr["plants"] - psnr[str(path)]) < 1.0
