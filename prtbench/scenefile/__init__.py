@@ -15,6 +15,8 @@ Import
   and duplicate faces are removed, unused vertices dropped, vertex normals computed
   (angle-weighted) where the file has none. Non-manifold edges (shared by more than two
   faces) are counted and reported, not fatal. Vertices are never welded (UV seams stay).
+- A file with more triangles than this machine's memory holds through a run (512 B each,
+  the built-in scenes' estimate) is refused naming the limit (:func:`check_triangles`).
 - ``ground=true`` adds the papers' two-triangle ground plane (kd 0.6, facing +Y) under the
   bounds, twice the larger horizontal extent wide.
 
@@ -62,7 +64,8 @@ from .materials import DEFAULT_KD, GLOSSY_DEFAULT, phong_exponent
 from .report import ImportReport
 
 __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
-           "build_file_scene", "is_scene_path", "phong_exponent", "read_scene_file"]
+           "build_file_scene", "check_triangles", "is_scene_path", "phong_exponent",
+           "read_scene_file"]
 
 #: File suffixes read as scenes (lower case).
 SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off", ".stl")
@@ -84,6 +87,27 @@ def is_scene_path(name: str) -> bool:
     if text.lower().endswith(SUFFIXES):
         return True
     return ("/" in text or "\\" in text) and Path(text).exists()
+
+
+def check_triangles(label: str, n_triangles: int, *, budget: int | None = None) -> None:
+    """Refuse a file whose triangles exceed what a run can hold in ``budget`` bytes.
+
+    The same estimate as the built-in scenes' geometry parameters
+    (:data:`prtbench.scene_params.BYTES_PER_TRIANGLE` bytes per triangle through a run, against
+    :func:`prtbench.config.memory_budget`), so the limit is stated in triangles; methods with
+    their own limits (``sloan-matrix``'s ``max_bytes``) check them in ``validate``.
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming the file, its triangles and the largest accepted count.
+    """
+    from .. import config
+
+    budget = config.memory_budget() if budget is None else budget
+    config.check_memory(f"{label} with {n_triangles} triangles",
+                        float(n_triangles) * P.BYTES_PER_TRIANGLE, budget=budget,
+                        accepted=f"at most {budget // P.BYTES_PER_TRIANGLE} triangles")
 
 
 def build_file_scene(path: str, *, variant: str = "diffuse", **params: Any):
@@ -112,8 +136,9 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
     ------
     InvalidInputError
         Missing file, unsupported suffix, unknown parameter, a file trimesh cannot parse, a
-        glTF whose buffer or image is missing, no triangles, NaN/Inf positions, or a bounds
-        diagonal outside [1e-6, 1e6] after ``scale``.
+        glTF whose buffer or image is missing, no triangles, NaN/Inf positions, more
+        triangles than this machine's memory holds through a run (:func:`check_triangles`),
+        or a bounds diagonal outside [1e-6, 1e6] after ``scale``.
     """
     from ..scene import VARIANTS, Scene, Trajectory
     from ..scene_params import check_extent, check_params
@@ -143,6 +168,7 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
 
     tm_scene = load(file, label)
     objects = objects_of(tm_scene, values, variant, label, report)
+    check_triangles(label, sum(o.mesh.n_triangles for o in objects))
     lo, hi = bounds_of(objects)
     diag = float(np.linalg.norm(hi - lo))
     if not MIN_DIAGONAL <= diag <= MAX_DIAGONAL:

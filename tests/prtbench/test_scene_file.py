@@ -472,3 +472,24 @@ def test_plants_exported_to_glb_measures_as_the_builtin_plants_for_vertex(tmp_pa
             assert not gate(request, summary.mean_metrics())
     print(f"masked PSNR built-in {psnr['plants']:.3f} dB, imported {psnr[str(path)]:.3f} dB")
     assert abs(psnr["plants"] - psnr[str(path)]) < 1.0
+
+
+def test_file_scene_over_the_memory_triangle_limit_is_refused(tmp_path, monkeypatch, capsys):
+    # The machine's memory stands in as 1000 triangles' worth (512 B each through a run): the
+    # 1280-triangle icosphere is refused naming its count and the limit; 320 are accepted.
+    import prtbench.config as config
+    from prtbench.scene_params import BYTES_PER_TRIANGLE
+
+    monkeypatch.setattr(config, "memory_budget", lambda: 1000 * BYTES_PER_TRIANGLE)
+    path = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=3).export(str(path))
+    before = _cache_files()
+    assert main(["run", "--method", "vertex", "--scene", str(path), "--profile", "smoke",
+                 "--results", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("prtbench: error: ") and "\n" not in err, err
+    assert "ball.stl' with 1280 triangles" in err and "at most 1000 triangles" in err, err
+    assert _cache_files() == before and not (tmp_path / "out").exists()
+    small = tmp_path / "small.stl"
+    trimesh.creation.icosphere(subdivisions=2).export(str(small))
+    assert read_scene_file(str(small))[0].n_triangles == 320
