@@ -358,6 +358,22 @@ def test_vertex_prt_on_a_gltf_file_beats_the_trivial_images(tmp_path):
     assert read_scene_file(str(path))[1].sha256 in rows[0][1]
 
 
+def _as_gltf_scene(scene, *, translation=None) -> "trimesh.Scene":
+    """A built-in scene as a trimesh scene: one node per object (moved by ``translation``),
+    its normals stored, kd as glTF's 8-bit baseColorFactor on a non-metallic rough material."""
+    out = trimesh.Scene()
+    transform = (np.eye(4) if translation is None
+                 else trimesh.transformations.translation_matrix(translation))
+    for o in scene.objects:
+        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
+                               process=False)
+        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
+        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
+        out.add_geometry(mesh, node_name=o.name, geom_name=o.name, transform=transform)
+    return out
+
+
 def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tmp_path):
     # plants (diffuse) written to glTF by trimesh, every node translated by t, its normals
     # stored: the import is the built-in scene moved by t, so a camera moved by t sees the same
@@ -368,15 +384,7 @@ def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tm
 
     builtin = get_scene("plants")
     t = np.array([10.0, -2.0, 3.5])
-    out = trimesh.Scene()
-    for o in builtin.objects:
-        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
-                               process=False)
-        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
-        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
-            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
-        out.add_geometry(mesh, node_name=o.name, geom_name=o.name,
-                         transform=trimesh.transformations.translation_matrix(t))
+    out = _as_gltf_scene(builtin, translation=t)
     path = tmp_path / "plants.glb"
     out.export(str(path))
     imported, report = read_scene_file(str(path))
@@ -443,14 +451,7 @@ def test_plants_exported_to_glb_measures_as_the_builtin_plants_for_vertex(tmp_pa
     # what is measured (under sky, at 1 view, vertex does not beat the unshadowed image here).
     params = {"ground_subdivisions": 32}
     builtin = get_scene("plants", **params)
-    out = trimesh.Scene()
-    for o in builtin.objects:
-        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
-                               process=False)
-        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
-        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
-            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
-        out.add_geometry(mesh, node_name=o.name, geom_name=o.name)
+    out = _as_gltf_scene(builtin)
     path = tmp_path / "plants.glb"
     out.export(str(path))
 
