@@ -105,17 +105,15 @@ def _run(args: argparse.Namespace) -> int:
 
 def _reference(args: argparse.Namespace) -> int:
     from .lights import get_light
+    from .config import parse_overrides
     from .profiles import get_profile
     from .reference import render_references
     from .outputs import check_cache
     from .runner import parse_resolution, resolve_views
     from .scene import get_scene
 
-    from .config import parse_overrides
-
     profile = get_profile(args.profile)
-    scene = get_scene(args.scene, variant=args.variant,
-                      **parse_overrides(getattr(args, "scene_param", None) or []))
+    scene = get_scene(args.scene, variant=args.variant, **parse_overrides(args.scene_param or []))
     light = get_light(args.light or scene.default_light)
     scene = resolve_views(scene, profile, args.views)  # the validator `run` uses
     width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
@@ -325,9 +323,9 @@ def _scene_info(args: argparse.Namespace) -> int:
           f"{scene.n_vertices} vertices")
     print(f"  bounds ({', '.join(f'{c:.4g}' for c in lo)}) .. ({', '.join(f'{c:.4g}' for c in hi)})"
           f", diagonal {scene.diagonal():.4g}")
-    print(f"  views: {f'{report.cameras} from the file' if report.cameras else ''}"
-          f"{'' if report.cameras else f'{len(scene.trajectory)}-view orbit'}; "
-          f"default light {scene.default_light}")
+    views = (f"{report.cameras} from the file" if report.cameras
+             else f"{len(scene.trajectory)}-view orbit")
+    print(f"  views: {views}; default light {scene.default_light}")
     print(f"  repaired: {report.degenerate_faces} degenerate and {report.duplicate_faces} "
           f"duplicate faces removed, normals computed for {report.normals_computed} objects; "
           f"{report.non_manifold_edges} non-manifold edges (kept)")
