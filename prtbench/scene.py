@@ -277,6 +277,16 @@ class Trajectory:
         return cls(tuple(views))
 
 
+def objects_bounds(objects: Sequence[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
+    """World-space axis-aligned bounds (lo, hi), each (3,) float64, of ``objects``.
+
+    :meth:`Scene.bounds`, for objects not yet in a scene (a file import checks its extent
+    before it builds the scene's views).
+    """
+    pts = np.concatenate([o.mesh.positions for o in objects]).astype(np.float64)
+    return pts.min(axis=0), pts.max(axis=0)
+
+
 @dataclass(eq=False)
 class Scene:
     """Everything a method and the reference need to render the same picture.
@@ -325,8 +335,7 @@ class Scene:
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """World-space axis-aligned bounds (lo, hi), each (3,) float64."""
-        pts = np.concatenate([o.mesh.positions for o in self.objects]).astype(np.float64)
-        return pts.min(axis=0), pts.max(axis=0)
+        return objects_bounds(self.objects)
 
     def diagonal(self) -> float:
         lo, hi = self.bounds()

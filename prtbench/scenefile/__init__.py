@@ -140,10 +140,10 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
         triangles than this machine's memory holds through a run (:func:`check_triangles`),
         or a bounds diagonal outside [1e-6, 1e6] after ``scale``.
     """
-    from ..scene import VARIANTS, Scene, Trajectory
+    from ..scene import VARIANTS, Scene, Trajectory, objects_bounds
     from ..scene_params import check_extent, check_params
     from .reader import load, objects_of, sidecars
-    from .views import bounds_of, file_views, ground, orbit
+    from .views import file_views, ground, orbit
 
     file = Path(path)
     label = f"scene file '{path}'"
@@ -169,7 +169,7 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
     tm_scene = load(file, label)
     objects = objects_of(tm_scene, values, variant, label, report)
     check_triangles(label, sum(o.mesh.n_triangles for o in objects))
-    lo, hi = bounds_of(objects)
+    lo, hi = objects_bounds(objects)
     diag = float(np.linalg.norm(hi - lo))
     if not MIN_DIAGONAL <= diag <= MAX_DIAGONAL:
         hint = 2.0 / diag if diag > 0 else None

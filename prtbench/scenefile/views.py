@@ -15,12 +15,6 @@ GROUND_KD = 0.6
 ORBIT_ELEVATION_DEG, ORBIT_FOV_DEG, ORBIT_VIEWS = 25.0, 45.0, 30
 
 
-def bounds_of(objects) -> tuple[np.ndarray, np.ndarray]:
-    """World-space bounds (lo, hi), each (3,) float64, of ``objects``."""
-    pts = np.concatenate([o.mesh.positions for o in objects]).astype(np.float64)
-    return pts.min(axis=0), pts.max(axis=0)
-
-
 def ground(lo: np.ndarray, hi: np.ndarray, variant: str):
     from ..geometry import grid_plane
     from ..scene import Material, SceneObject
