@@ -206,8 +206,17 @@ def check_params(scene: str, specs: Mapping[str, SceneParam], values: Mapping[st
             for key, value in values.items()}
 
 
-def check_extent(scene: Any, params: Mapping[str, Any]) -> None:
+def check_extent(scene: Any, params: Mapping[str, Any], *, scale_hint: bool = False) -> None:
     """Refuse a built scene too small or too large for float32 ray offsets.
+
+    Parameters
+    ----------
+    scene : Scene
+    params : mapping
+        The parameters it was built with (named in the message).
+    scale_hint : bool
+        The scene takes a ``scale`` parameter (scene files): the message then says which
+        ``--scene-param scale=`` brings the diagonal to about 2.
 
     Raises
     ------
@@ -227,8 +236,12 @@ def check_extent(scene: Any, params: Mapping[str, Any]) -> None:
         return
     shown = ", ".join(f"{k}={v!r}" for k, v in params.items()) or "defaults"
     low = offset / MAX_OFFSET_FRACTION
+    hint = ""
+    if scale_hint and math.isfinite(diag) and diag > 0:
+        scale = float(params.get("scale", 1.0)) * 2.0 / diag
+        hint = f"; hint: --scene-param scale={scale:.3g} makes it about 2"
     raise InvalidInputError(
         f"scene '{scene.name}' ({shown}) has bounds diagonal {diag:.3g}; accepted: "
         f"{low:.3g}..{MAX_DIAGONAL:g} (Mitsuba offsets float32 rays by (1 + max|p|) · "
         f"{RAY_EPSILON:.3g} = {offset:.3g} here, which must stay under "
-        f"{MAX_OFFSET_FRACTION:.0%} of the diagonal)")
+        f"{MAX_OFFSET_FRACTION:.0%} of the diagonal){hint}")

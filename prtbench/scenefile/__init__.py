@@ -71,8 +71,6 @@ __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
 SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off", ".stl")
 #: Bump when the import changes what a file builds (invalidates every file scene's caches).
 FILE_SCENE_VERSION = 1
-#: Bounds diagonal accepted after ``scale`` (wider than this cannot be right for any asset).
-MIN_DIAGONAL, MAX_DIAGONAL = 1e-6, 1e6
 #: The import parameters (``--scene-param``), checked by :func:`prtbench.scene_params.check_params`.
 PARAMS = {"scale": P.length(low=0.0, high=1e12), "up": P.choice("y", "z"), "ground": P.flag()}
 DEFAULTS = {"scale": 1.0, "up": "y", "ground": False}
@@ -138,7 +136,8 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
         Missing file, unsupported suffix, unknown parameter, a file trimesh cannot parse, a
         glTF whose buffer or image is missing, no triangles, NaN/Inf positions, more
         triangles than this machine's memory holds through a run (:func:`check_triangles`),
-        or a bounds diagonal outside [1e-6, 1e6] after ``scale``.
+        or a bounds diagonal after ``scale`` outside what float32 ray offsets allow
+        (:func:`prtbench.scene_params.check_extent`, with a ``scale=`` hint).
     """
     from ..scene import VARIANTS, Scene, Trajectory, objects_bounds
     from ..scene_params import check_extent, check_params
@@ -170,13 +169,6 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
     objects = objects_of(tm_scene, values, variant, label, report)
     check_triangles(label, sum(o.mesh.n_triangles for o in objects))
     lo, hi = objects_bounds(objects)
-    diag = float(np.linalg.norm(hi - lo))
-    if not MIN_DIAGONAL <= diag <= MAX_DIAGONAL:
-        hint = 2.0 / diag if diag > 0 else None
-        raise InvalidInputError(
-            f"{label}: bounds diagonal {diag:.3g} after scale={values['scale']:g}; accepted: "
-            f"{MIN_DIAGONAL:g}..{MAX_DIAGONAL:g}"
-            + (f" (hint: --scene-param scale={hint:.3g} makes it about 2)" if hint else ""))
     if values["ground"]:
         objects.append(ground(lo, hi, variant))
     views = file_views(tm_scene, values)
@@ -188,5 +180,5 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
     scene = Scene(name, objects, variant=variant, default_light="sky",
                   trajectory=Trajectory(tuple(views)), exposure=0.7,
                   params={"file": file.name, "file_sha256": report.sha256, **values})
-    check_extent(scene, values)
+    check_extent(scene, {"file": str(path), **values}, scale_hint=True)
     return scene, report

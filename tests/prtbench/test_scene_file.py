@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -293,6 +294,19 @@ def test_bad_inputs_are_one_line_errors_naming_the_file_and_cache_nothing(tmp_pa
         assert "\n" not in message
         assert Path(path).name in message or "parameter" in message, message
         assert _cache_files() == before
+
+
+def test_the_scale_hint_of_a_too_small_file_scene_is_a_scale_that_imports(tmp_path):
+    # A 1 mm box (diagonal 1.7e-3) is below what float32 ray offsets allow (about 9e-3 near
+    # the origin); the refusal names the scale that brings the diagonal to about 2.
+    path = tmp_path / "tiny.stl"
+    trimesh.creation.box(extents=(1e-3, 1e-3, 1e-3)).export(str(path))
+    with pytest.raises(InvalidInputError, match="bounds diagonal 0.00173") as err:
+        get_scene(str(path))
+    hint = re.search(r"--scene-param scale=(\S+) makes it about 2", str(err.value))
+    assert hint, str(err.value)
+    lo, hi = get_scene(str(path), scale=hint.group(1)).bounds()
+    assert np.linalg.norm(hi - lo) == pytest.approx(2.0, rel=1e-2)
 
 
 def test_scene_info_prints_counts_materials_and_repairs(tmp_path, capsys):
