@@ -16,8 +16,10 @@ from prtbench.scene import VARIANTS, Material, Scene, SceneObject, Trajectory, T
 
 from .primitives import outward, rotate_y, transformed, translate
 
-#: Bump when asset-mesh normalisation changes (invalidates cached normalised meshes).
-ASSET_MESH_VERSION = 3
+#: Bump when asset-mesh reading or normalisation changes (invalidates cached normalised meshes).
+#: 4: PLY/OFF read by trimesh, which keeps a PLY ``float`` property float32 (the old reader
+#: parsed ASCII text as float64; the dragon's positions move by up to 7e-9).
+ASSET_MESH_VERSION = 4
 
 
 def check_variant(variant: str) -> str:

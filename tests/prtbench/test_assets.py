@@ -16,7 +16,7 @@ import pytest
 
 from prtbench import assets
 from prtbench.assets import AssetSpec, asset_path, fetch, is_fetched
-from prtbench.errors import AssetMissingError, PrtbenchError, UnknownNameError
+from prtbench.errors import AssetMissingError, InvalidInputError, PrtbenchError, UnknownNameError
 
 _USER_CACHE = os.environ.get("PRTBENCH_CACHE")  # read before conftest isolates the cache
 
@@ -271,6 +271,17 @@ def test_real_hdris_load(user_cache):
 
 # --- mesh readers (small files written here) --------------------------------------------------
 
+def _canonical_triangles(faces):
+    """Triangles as a sorted list, each rotated to start at its smallest index (winding kept)."""
+    faces = np.asarray(faces)
+    shift = np.argmin(faces, axis=1)
+    rotated = np.stack([np.roll(f, -k) for f, k in zip(faces, shift)])
+    return sorted(map(tuple, rotated.tolist()))
+
+
+# The quad 0-1-2-3 split along 0-2 and the triangle 1-4-2, wound as in the file.
+QUAD_AND_TRIANGLE = [(0, 1, 2), (0, 2, 3), (1, 4, 2)]
+
 def test_read_ply_ascii_and_binary_with_polygons(tmp_path):
     import gzip
     import struct
@@ -280,19 +291,28 @@ def test_read_ply_ascii_and_binary_with_polygons(tmp_path):
     positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0]],
                          dtype=np.float32)
     header = ("ply\nformat {fmt} 1.0\ncomment test\nelement vertex 5\nproperty float x\n"
-              "property float y\nproperty float z\nproperty uchar intensity\nelement face 2\n"
+              "property float y\nproperty float z\nproperty uchar intensity\nelement face {n}\n"
               "property list uchar int vertex_indices\nend_header\n")
     ascii_body = "".join(f"{x} {y} {z} 7\n" for x, y, z in positions) + "4 0 1 2 3\n3 1 4 2\n"
-    ascii_file = (header.format(fmt="ascii") + ascii_body).encode()
+    ascii_file = (header.format(fmt="ascii", n=2) + ascii_body).encode()
     (tmp_path / "a.ply.gz").write_bytes(gzip.compress(ascii_file))
-    binary_body = b"".join(struct.pack("<fffB", *p, 7) for p in positions)
-    binary_body += struct.pack("<B4i", 4, 0, 1, 2, 3) + struct.pack("<B3i", 3, 1, 4, 2)
-    binary_header = header.format(fmt="binary_little_endian").encode()
-    (tmp_path / "b.ply").write_bytes(binary_header + binary_body)
-    for name in ("a.ply.gz", "b.ply"):
-        p, f = read_mesh(tmp_path / name)
-        np.testing.assert_allclose(p, positions)
-        np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])  # quad fanned
+    p, f = read_mesh(tmp_path / "a.ply.gz")
+    np.testing.assert_allclose(p, positions)
+    assert _canonical_triangles(f) == QUAD_AND_TRIANGLE
+
+    vertices = b"".join(struct.pack("<fffB", *v, 7) for v in positions)
+    binary_header = header.format(fmt="binary_little_endian", n=2).encode()
+    two_quads = struct.pack("<B4i", 4, 0, 1, 2, 3) + struct.pack("<B4i", 4, 1, 4, 2, 3)
+    (tmp_path / "b.ply").write_bytes(binary_header + vertices + two_quads)
+    p, f = read_mesh(tmp_path / "b.ply")
+    np.testing.assert_allclose(p, positions)
+    assert len(f) == 4 and set(np.unique(f)) == {0, 1, 2, 3, 4}
+    # trimesh reads binary face lists of one length only: a quad beside a triangle is refused
+    # in one line naming the file (no pinned asset has one; the dragon PLYs are ASCII).
+    mixed = struct.pack("<B4i", 4, 0, 1, 2, 3) + struct.pack("<B3i", 3, 1, 4, 2)
+    (tmp_path / "c.ply").write_bytes(binary_header + vertices + mixed)
+    with pytest.raises(InvalidInputError, match=r"c\.ply: trimesh cannot parse it as PLY"):
+        read_mesh(tmp_path / "c.ply")
 
 
 def test_read_off_with_comments_and_quads(tmp_path):
@@ -302,7 +322,7 @@ def test_read_off_with_comments_and_quads(tmp_path):
                                     "0 1 0\n2 0 0\n# faces\n4 0 1 2 3 255 0 0\n3 1 4 2\n")
     p, f = read_mesh(tmp_path / "q.off")
     assert p.shape == (5, 3)
-    np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    assert _canonical_triangles(f) == QUAD_AND_TRIANGLE
 
 
 def test_read_js_packages(tmp_path):

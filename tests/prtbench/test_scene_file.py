@@ -319,6 +319,18 @@ def test_scene_info_prints_counts_materials_and_repairs(tmp_path, capsys):
     assert "bounds (-1.5, -0.5, -0.5) .. (1.5, 0.5, 0.5)" in out
 
 
+def test_scene_info_of_a_builtin_name_summarises_the_builtin_scene(capsys):
+    assert main(["scene", "info", "sphere-over-plane"]) == 0
+    out = capsys.readouterr().out
+    built = get_scene("sphere-over-plane")
+    assert out.startswith(f"scene {built.name} (diffuse) built in")
+    assert f"{len(built.objects)} objects, {built.n_triangles} triangles" in out
+    assert "repaired" not in out
+    assert main(["scene", "info", "sphere-over-plan"]) == 2
+    assert "unknown scene 'sphere-over-plan'; did you mean 'sphere-over-plane'" in \
+        capsys.readouterr().err
+
+
 def test_scene_info_bad_input_exits_2(tmp_path, capsys):
     for path, params, fragment in _bad_inputs(tmp_path):
         argv = ["scene", "info", path] + [f"--scene-param={k}={v}" for k, v in params.items()]
