@@ -51,6 +51,7 @@ for the results store.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from pathlib import Path
 from typing import Any
@@ -65,7 +66,7 @@ from .report import ImportReport
 
 __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
            "build_file_scene", "check_triangles", "is_scene_path", "phong_exponent",
-           "read_scene_file"]
+           "read_scene_file", "scene_files"]
 
 #: File suffixes read as scenes (lower case).
 SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off", ".stl")
@@ -127,8 +128,24 @@ def build_file_scene(path: str, *, variant: str = "diffuse", **params: Any):
     return read_scene_file(path, variant=variant, **params)[0]
 
 
+def scene_files(path: str) -> list[Path]:
+    """The files of ``--scene path``: one file, or several joined with ``+``.
+
+    ``chair.glb+table.obj`` combines two files into one scene. A path that exists as a file is
+    always that one file, even if its name contains ``+``.
+    """
+    text = str(path)
+    if "+" not in text or Path(text).is_file():
+        return [Path(text)]
+    return [Path(part) for part in text.split("+")]
+
+
 def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
-    """Import ``path``; returns ``(scene, report)``. Writes nothing.
+    """Import ``path`` (one file, or several joined with ``+``); returns ``(scene, report)``.
+
+    Several files are one scene: their objects side by side (in each file's own coordinates,
+    after the same ``scale`` and ``up``), object names prefixed by the file's stem, views from
+    the first file that has a camera, identity hashed over every file in order. Writes nothing.
 
     Raises
     ------
@@ -144,7 +161,7 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
     from .reader import load, objects_of, sidecars
     from .views import file_views, ground, orbit
 
-    file = Path(path)
+    files = scene_files(path)
     label = f"scene file '{path}'"
     if variant not in VARIANTS:
         raise InvalidInputError(f"unknown variant '{variant}'; known: {', '.join(VARIANTS)}")
@@ -153,32 +170,41 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
             raise InvalidInputError(f"{label} has no parameter '{key}'; accepted: "
                                     f"{', '.join(PARAMS)}")
     values = {**DEFAULTS, **check_params(str(path), PARAMS, params)}
-    if file.suffix.lower() not in SUFFIXES:
-        raise InvalidInputError(f"{label}: unsupported extension '{file.suffix}'; accepted: "
-                                f"{', '.join(SUFFIXES)}")
-    if not file.is_file():
-        raise InvalidInputError(f"{label}: no such file")
-    sidecars = sidecars(file, label)
+    for file in files:
+        own = f"scene file '{file}'"
+        if file.suffix.lower() not in SUFFIXES:
+            raise InvalidInputError(f"{own}: unsupported extension '{file.suffix}'; accepted: "
+                                    f"{', '.join(SUFFIXES)} (join several files with '+')")
+        if not file.is_file():
+            raise InvalidInputError(f"{own}: no such file")
+    report = ImportReport(path=str(path), sha256="")
     digest = hashlib.sha256()
-    for f in [file, *sidecars]:
-        digest.update(f.name.encode() + b"\0" + f.read_bytes())
-    report = ImportReport(path=str(path), sha256=digest.hexdigest(),
-                          sidecars=[str(s) for s in sidecars])
-
-    tm_scene = load(file, label)
-    objects = objects_of(tm_scene, values, variant, label, report)
+    objects, views = [], []
+    for file in files:
+        own = f"scene file '{file}'"
+        extra = sidecars(file, own)
+        for f in [file, *extra]:
+            digest.update(f.name.encode() + b"\0" + f.read_bytes())
+        report.sidecars += [str(s) for s in extra]
+        tm_scene = load(file, own)
+        found = objects_of(tm_scene, values, variant, own, report)
+        if len(files) > 1:  # node names repeat across files ("geometry_0")
+            found = [dataclasses.replace(o, name=f"{file.stem}/{o.name}") for o in found]
+        objects += found
+        views = views or file_views(tm_scene, values)
+    report.sha256 = digest.hexdigest()
     check_triangles(label, sum(o.mesh.n_triangles for o in objects))
     lo, hi = objects_bounds(objects)
     if values["ground"]:
         objects.append(ground(lo, hi, variant))
-    views = file_views(tm_scene, values)
     report.cameras = len(views)
     if not views:
         views = orbit(lo, hi)
     key = content_key("scene-file", FILE_SCENE_VERSION, report.sha256, values)
-    name = f"{file.stem}-{key[:10]}"
+    name = f"{'+'.join(f.stem for f in files)}-{key[:10]}"
     scene = Scene(name, objects, variant=variant, default_light="sky",
                   trajectory=Trajectory(tuple(views)), exposure=0.7,
-                  params={"file": file.name, "file_sha256": report.sha256, **values})
+                  params={"file": "+".join(f.name for f in files), "file_sha256": report.sha256,
+                          **values})
     check_extent(scene, {"file": str(path), **values}, scale_hint=True)
     return scene, report

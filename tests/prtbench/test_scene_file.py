@@ -245,6 +245,35 @@ def test_up_z_and_scale(tmp_path):
     np.testing.assert_allclose(hi, [0.25, 2.0, 0.5], atol=1e-6)
 
 
+def test_several_files_joined_with_plus_are_one_scene(tmp_path):
+    box = trimesh.creation.box(extents=[1, 1, 1])
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    ball.apply_translation([3, 0, 0])
+    box.export(str(tmp_path / "box.stl"))
+    ball.export(str(tmp_path / "ball.glb"))
+    a, b = str(tmp_path / "box.stl"), str(tmp_path / "ball.glb")
+    both, report = read_scene_file(f"{a}+{b}", scale="2")
+    alone = [get_scene(f, scale="2") for f in (a, b)]
+    assert len(both.objects) == 2 and all(o.name.split("/")[0] in ("box", "ball")
+                                          for o in both.objects)
+    assert both.n_triangles == sum(s.n_triangles for s in alone)
+    np.testing.assert_allclose(both.bounds()[0], [-1, -1, -1], atol=1e-6)  # box, scaled
+    np.testing.assert_allclose(both.bounds()[1], [7, 1, 1], atol=1e-2)  # ball at x = 6 ± 1
+    for combined, single in zip(both.objects, alone):
+        np.testing.assert_allclose(combined.mesh.positions, single.objects[0].mesh.positions)
+    assert both.params["file"] == "box.stl+ball.glb" and both.name.startswith("box+ball-")
+    # identity follows every file, in order
+    assert get_scene(f"{b}+{a}", scale="2").name != both.name
+    assert report.sha256 not in {get_scene(f).params["file_sha256"] for f in (a, b)}
+    # a missing member is named on its own
+    with pytest.raises(InvalidInputError, match=r"scene file '.*nothere\.obj': no such file"):
+        get_scene(f"{a}+{tmp_path / 'nothere.obj'}")
+    # a real file whose name has a '+' is that one file
+    plus = tmp_path / "a+b.stl"
+    box.export(str(plus))
+    assert get_scene(str(plus)).n_triangles == alone[0].n_triangles
+
+
 def test_paths_pass_the_registry_check_and_names_still_do(tmp_path):
     assert SCENES.check("anything/model.glb") == "anything/model.glb"
     assert SCENES.check("plants") == "plants"
