@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import base64
+import io
 import json
+import struct
 import warnings
 from pathlib import Path
 from typing import Any
@@ -43,6 +46,10 @@ def sidecars(file: Path, label: str) -> list[Path]:
                 if kind == "images":
                     _check_image(side, label)
                 found.append(side)
+        _check_embedded_images(tree, None, label)
+    elif suffix == ".glb":
+        tree, binary = _glb_chunks(file, label)
+        _check_embedded_images(tree, binary, label)
     elif suffix == ".obj":
         for mtl in _directives(file, "mtllib"):
             side = file.parent / mtl
@@ -56,16 +63,73 @@ def sidecars(file: Path, label: str) -> list[Path]:
     return found
 
 
-def _check_image(path: Path, label: str) -> None:
-    """Refuse an image file PIL cannot decode (trimesh would silently drop the texture)."""
+def _check_image(path: Path | bytes, label: str, name: str | None = None) -> None:
+    """Refuse an image (a file, or bytes embedded in a glTF) PIL cannot decode.
+
+    trimesh would silently drop the texture and the scene would render untextured.
+    """
     from PIL import Image
 
+    name = name or (path.name if isinstance(path, Path) else "embedded image")
     try:
-        with Image.open(path) as img:
+        with Image.open(path if isinstance(path, Path) else io.BytesIO(path)) as img:
             img.load()
     except Exception as exc:  # PIL raises several kinds for truncated or foreign data
-        raise InvalidInputError(f"{label}: texture '{path.name}' cannot be decoded "
+        raise InvalidInputError(f"{label}: texture '{name}' cannot be decoded "
                                 f"({type(exc).__name__})") from None
+
+
+def _glb_chunks(file: Path, label: str) -> tuple[Any, bytes]:
+    """The JSON tree and the BIN chunk of a binary glTF (an unparsable file is left to trimesh).
+
+    Layout (glTF 2.0 spec): a 12-byte header (magic ``glTF``, version, length), then chunks of
+    (uint32 length, uint32 type, data); the first is JSON, an optional second is BIN.
+    """
+    raw = file.read_bytes()
+    if len(raw) < 20 or raw[:4] != b"glTF":
+        return {}, b""
+    offset, tree, binary = 12, {}, b""
+    while offset + 8 <= len(raw):
+        length, kind = struct.unpack_from("<II", raw, offset)
+        data = raw[offset + 8:offset + 8 + length]
+        if kind == 0x4E4F534A:  # "JSON"
+            try:
+                tree = json.loads(data.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                return {}, b""
+        elif kind == 0x004E4942:  # "BIN\0"
+            binary = data
+        offset += 8 + length
+    return tree, binary
+
+
+def _check_embedded_images(tree: Any, binary: bytes | None, label: str) -> None:
+    """Decode every image stored inside a glTF (a bufferView of the GLB's BIN chunk, or a
+    ``data:`` URI) and refuse one PIL cannot read."""
+    if not isinstance(tree, dict):
+        return
+    views = tree.get("bufferViews", [])
+    for index, image in enumerate(tree.get("images", [])):
+        if not isinstance(image, dict):
+            continue
+        name = image.get("name") or f"image {index}"
+        uri = image.get("uri")
+        if isinstance(uri, str) and uri.startswith("data:"):
+            try:
+                data = base64.b64decode(uri.split(",", 1)[1], validate=False)
+            except (IndexError, ValueError):
+                raise InvalidInputError(f"{label}: texture '{name}' has a malformed data URI") \
+                    from None
+            _check_image(data, label, name)
+        elif "bufferView" in image and binary is not None:
+            try:
+                view = views[image["bufferView"]]
+                start = int(view.get("byteOffset", 0))
+                data = binary[start:start + int(view["byteLength"])]
+            except (IndexError, KeyError, TypeError, ValueError):
+                raise InvalidInputError(f"{label}: texture '{name}' points at a missing "
+                                        "bufferView") from None
+            _check_image(data, label, name)
 
 
 def _unquote(uri: str) -> str:

@@ -281,6 +281,22 @@ def test_paths_pass_the_registry_check_and_names_still_do(tmp_path):
         SCENES.check("no-such-scene")
 
 
+def _glb_with_a_broken_embedded_texture(path: Path) -> None:
+    """A textured GLB whose embedded PNG bytes are zeroed in place (lengths kept)."""
+    import json
+    import struct
+
+    _pbr_box(texture=Image.new("RGB", (8, 8), (200, 50, 50))).export(str(path))
+    raw = bytearray(path.read_bytes())
+    json_length = struct.unpack_from("<I", raw, 12)[0]
+    tree = json.loads(raw[20:20 + json_length])
+    bin_start = 20 + json_length + 8
+    view = tree["bufferViews"][tree["images"][0]["bufferView"]]
+    start = bin_start + view.get("byteOffset", 0)
+    raw[start:start + view["byteLength"]] = bytes(view["byteLength"])
+    path.write_bytes(bytes(raw))
+
+
 def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
     (tmp_path / "model.fbx").write_bytes(b"fbx")
     (tmp_path / "garbage.glb").write_bytes(b"glTF" + os.urandom(64))
@@ -298,6 +314,7 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
         "f 1/1 2/2 3/3\n")
     small = tmp_path / "small.stl"
     trimesh.creation.box().export(str(small))
+    _glb_with_a_broken_embedded_texture(tmp_path / "badtex.glb")
     return [
         (str(tmp_path / "missing.glb"), {}, "no such file"),
         (str(tmp_path / "model.fbx"), {}, "unsupported extension '.fbx'; accepted: .glb, .gltf"),
@@ -306,6 +323,7 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
         (str(nan_obj), {}, "NaN/Inf vertex positions"),
         (str(gltf), {}, "is missing"),
         (str(tmp_path / "badtex.obj"), {}, "texture 'broken.png' cannot be decoded"),
+        (str(tmp_path / "badtex.glb"), {}, "cannot be decoded"),
         (str(small), {"scale": "1e-9"}, "hint: --scene-param scale="),
         (str(small), {"scale": "1e7"}, "bounds diagonal"),
         (str(small), {"up": "x"}, "accepted: y, z"),
