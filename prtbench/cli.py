@@ -252,8 +252,11 @@ def _pareto(args: argparse.Namespace) -> int:
     from .tradeoff.pareto import pareto
     from .tradeoff.pareto_report import summary_text
 
+    from .config import parse_overrides
+
     results = pareto(scene=args.scene, light=args.light, error=args.error, cost=args.cost,
-                     profile=args.profile, results_path=args.results, reports_dir=args.reports)
+                     profile=args.profile, results_path=args.results, reports_dir=args.reports,
+                     scene_params=parse_overrides(args.scene_param or []))
     print("\n".join(summary_text(r) for r in results))
     return 0
 
@@ -436,7 +439,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_analyze)
 
     p = sub.add_parser("pareto", help="Pareto fronts over (error, cost) from the results store")
-    p.add_argument("--scene", required=True)
+    p.add_argument("--scene", required=True, help="a scene name or an asset file")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
+                   help="scene parameter the rows were measured with (file scenes: scale, up, ground)")
     p.add_argument("--light", default=None, help="one light (default: every stored light)")
     p.add_argument("--error", default="psnr_masked", help="psnr_masked or flip_masked")
     p.add_argument("--cost", default="frame_ms", help="frame_ms, memory, precompute or ops")

@@ -309,7 +309,8 @@ def fill_hint(scene: str, profile: str) -> str:
     return f"`prtbench sweep --scene {scene} --method METHOD,... --profile {profile}` fills it"
 
 
-def select_rows(store, *, scene: str, light: str | None, profile: str) -> dict[str, list]:
+def select_rows(store, *, scene: str, light: str | None, profile: str,
+                fill: str | None = None) -> dict[str, list]:
     """The store's rows of ``scene`` and ``profile`` by light (ok, against the path reference).
 
     Raises a one-line PrtbenchError naming the command that fills the store when nothing fits.
@@ -319,7 +320,7 @@ def select_rows(store, *, scene: str, light: str | None, profile: str) -> dict[s
     by_light: dict[str, list] = defaultdict(list)
     for r in rows:
         by_light[r.light].append(r)
-    fill = fill_hint(scene, profile)
+    fill = fill or fill_hint(scene, profile)
     if not by_light:
         raise PrtbenchError(f"no ok rows of scene '{scene}' in profile '{profile}' against the "
                             f"path reference in results store '{store.path}'; {fill}")
@@ -334,12 +335,25 @@ def select_rows(store, *, scene: str, light: str | None, profile: str) -> dict[s
 
 def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
            cost: str = "frame_ms", profile: str = "quick", results_path: str | Path | None = None,
-           reports_dir: str | Path = "reports") -> list[ParetoResult]:
+           reports_dir: str | Path = "reports",
+           scene_params: dict | None = None) -> list[ParetoResult]:
     """Fronts of ``scene`` (every stored light, or ``light``) and their reports.
 
+    ``scene`` may be an asset file (DESIGN.md §16): it is imported with ``scene_params`` to
+    find the name its rows are stored under (the file's content hash and the parameters).
     Reads the store read-only; writes ``reports_dir/pareto-<scene>-<light>.{md,csv,png,svg}``
     atomically. Raises PrtbenchError (one line) for bad names and an empty selection.
     """
+    from ..scenefile import is_scene_path
+
+    if is_scene_path(scene):
+        from ..scene import get_scene
+
+        given = scene
+        scene = get_scene(given, **(scene_params or {})).name
+        hint = fill_hint(given, profile)
+    else:
+        hint = fill_hint(scene, profile)
     from .. import outputs
     from ..profiles import get_profile
     from ..results import ResultsStore, default_path
@@ -351,14 +365,15 @@ def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
     outputs.check_folder("--reports", Path(reports_dir))
     path = Path(results_path) if results_path is not None else default_path()
     if not path.is_file() and not path.is_dir():
-        raise PrtbenchError(f"no results store at '{path}'; {fill_hint(scene, profile)}")
+        raise PrtbenchError(f"no results store at '{path}'; {hint}")
     store = ResultsStore(path, readonly=True)
     results = []
-    for name, rows in select_rows(store, scene=scene, light=light, profile=profile).items():
+    for name, rows in select_rows(store, scene=scene, light=light, profile=profile,
+                                  fill=hint).items():
         points, skipped = collect_points(rows, error=error, cost=cost)
         if not points:
             raise PrtbenchError(f"no configuration of scene '{scene}' under light '{name}' has a "
-                                f"finite {error} in '{path}'; {fill_hint(scene, profile)}")
+                                f"finite {error} in '{path}'; {hint}")
         mark_fronts(points, error=error)
         correlation = ops_correlations(rows)
         result = ParetoResult(scene=scene, light=name, error=error, cost=cost, profile=profile,

@@ -274,6 +274,18 @@ def test_several_files_joined_with_plus_are_one_scene(tmp_path):
     assert get_scene(str(plus)).n_triangles == alone[0].n_triangles
 
 
+def test_pareto_of_a_file_scene_hints_with_the_path(tmp_path, capsys):
+    path = tmp_path / "box.stl"
+    trimesh.creation.box().export(str(path))
+    store = tmp_path / "r.sqlite"  # absent: pareto says which sweep fills it
+    argv = ["pareto", "--scene", str(path), "--scene-param", "ground=true", "--profile", "smoke",
+            "--results", str(store), "--reports", str(tmp_path / "rep")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"`prtbench sweep --scene {path} --method METHOD,... --profile smoke` fills it" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "rep").exists()
+
+
 def test_paths_pass_the_registry_check_and_names_still_do(tmp_path):
     assert SCENES.check("anything/model.glb") == "anything/model.glb"
     assert SCENES.check("plants") == "plants"
