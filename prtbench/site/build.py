@@ -12,6 +12,7 @@ otherwise delete someone's folder.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 import shutil
@@ -90,7 +91,8 @@ def check_out(out: Path) -> None:
     from .. import outputs
 
     outputs.check_folder("--out", out)
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+    foreign = [p for p in out.iterdir() if p.name not in KEPT] if out.is_dir() else []
+    if foreign and not (out / MARKER).is_file():
         raise InvalidInputError(f"--out '{out}' is a folder that is not a prtbench site (no {MARKER}); "
                                 f"accepted: a new or empty folder, or an earlier `prtbench report` output")
 
@@ -136,7 +138,9 @@ def _swap(staging: Path, out: Path) -> None:
 
 def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: bool) -> BuildSummary:
     env = _environment()
-    (root / MARKER).write_text("written by `prtbench report`; rebuilt in place\n")
+    # The store it was built from, for the browser test (tests/prtbench/test_site_browser.py).
+    (root / MARKER).write_text(json.dumps({"written_by": "prtbench report",
+                                           "results": str(site.results_path.resolve())}) + "\n")
     static = root / "static"
     static.mkdir()
     for name in STATIC:
