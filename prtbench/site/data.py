@@ -88,7 +88,7 @@ class Configuration:
 
     @property
     def label(self) -> str:
-        return f"{self.method} ({self.description})"
+        return f"{self.method}: {self.description}"
 
     @property
     def panel(self) -> tuple[str, int, int]:

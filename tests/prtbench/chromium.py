@@ -148,12 +148,14 @@ class Chromium:
         return result["result"].get("value")
 
     def screenshot(self, path: Path | None = None, *, clip: dict | None = None,
-                   full_page: bool = False) -> bytes:
-        """PNG bytes of the page (or ``clip`` {x, y, width, height} in CSS pixels)."""
+                   full_page: bool = False, max_height: float | None = None) -> bytes:
+        """PNG bytes of the viewport, of ``clip`` {x, y, width, height} (CSS pixels of the
+        viewport) or of the whole page from its top (``full_page``, at most ``max_height``)."""
         params: dict = {"format": "png"}
         if full_page:
             metrics = self.call("Page.getLayoutMetrics")["cssContentSize"]
-            clip = {"x": 0, "y": 0, "width": metrics["width"], "height": metrics["height"]}
+            height = min(metrics["height"], max_height or metrics["height"])
+            clip = {"x": 0, "y": 0, "width": metrics["width"], "height": height}
             params["captureBeyondViewport"] = True
         if clip is not None:
             params["clip"] = {**clip, "scale": 1}
