@@ -9,18 +9,20 @@ from the linear EXR, so highlights clipped at 0 EV come back at −2 EV (a tone-
 map compares the two 0 EV display images, as the stored ``flip`` metric does.
 
 PNGs are generated once: each is cached under ``cache_root()/site-images/<key>.png``, keyed by
-the source EXR's bytes hash and what was done to it, and copied into the site from there.
+the source EXR's bytes hash and what was done to it, and hard-linked (else copied) into the
+site from there.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 
-from ..cache import atomic_path, cache_root, content_key
+from ..cache import cache_root, content_key
 
 #: Exposure stops (EV relative to the scene's exposure) of the full-size display images.
 STOPS = (-2, -1, 0, 1, 2)
@@ -86,12 +88,15 @@ class ImageMaker:
             self.reused += 1
         else:
             write_png(cached, make())
+            os.chmod(cached, 0o644)  # shared with the site (a web server must read it)
             self.made += 1
         out = self.site / target
         if not out.exists():
             out.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(out) as tmp:
-                shutil.copyfile(cached, tmp)
+            try:  # the site is rebuilt whole, never edited: a hard link saves the copy
+                os.link(cached, out)
+            except OSError:  # another file system
+                shutil.copyfile(cached, out)
         return target
 
     def display(self, exr: Path, *, exposure: float, ev: int, target: str) -> str:
