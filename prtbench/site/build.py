@@ -148,13 +148,11 @@ def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: boo
     shutil.copyfile(_plotly_js(), static / PLOTLY_JS)
     maker = ImageMaker(root, cache=cache)
     pages = []
-    variants_all: set[str] = set()
     for page in site.pages:
         if echo:
             print(f"[report] {page.file}: {len(page.configurations)} configurations",
                   file=sys.stderr, flush=True)
-        viewer, variants = _page_images(page, maker)
-        variants_all |= variants
+        viewer = _page_images(page, maker)
         plots = []
         for panel in page.panels:
             members = [c for c in page.configurations if c.panel == panel]
@@ -166,17 +164,17 @@ def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: boo
         html = env.get_template("scene.html").render(
             page=page, viewer=viewer, plots=plots,
             viewer_images={c["id"]: c["views"] for c in viewer["configs"]}, stops=STOPS, site=site,
-            provenance=data_mod.provenance(page.rows, variants=sorted(variants)),
+            provenance=data_mod.provenance(page.rows, cache=cache),
             title=f"{page.scene} under {page.light} ({page.profile})")
         (root / page.file).write_text(html, encoding="utf-8")
         pages.append(page.file)
     reproduced = []
     for item in site.reproduced:
-        pages.append(_reproduction_page(item, site, root, env))
+        pages.append(_reproduction_page(item, site, root, env, maker_cache=cache))
         reproduced.append(item)
     html = env.get_template("index.html").render(
         site=site, overview=_overview(site), reproduced=reproduced,
-        provenance=data_mod.provenance(site.rows, variants=sorted(variants_all)),
+        provenance=data_mod.provenance(site.rows, cache=cache),
         title="prtbench comparison report")
     (root / "index.html").write_text(html, encoding="utf-8")
     pages.insert(0, "index.html")
@@ -193,12 +191,11 @@ def _plotly_js() -> Path:
     return path
 
 
-def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> tuple[dict, set[str]]:
-    """Make every PNG of a page; returns the viewer's JSON and the references' Mitsuba variants."""
+def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> dict:
+    """Make every PNG of a page; returns the comparison viewer's JSON."""
     from .. import renders
 
     folder = f"images/{data_mod.slug(page.scene, page.light, page.profile)}"
-    variants: set[str] = set()
     configs = []
     refs: dict[Path, str] = {}
     for conf in page.configurations:
@@ -211,7 +208,6 @@ def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> tuple[dict, set
                 checked = renders.load_reference(entry.reference)
                 if checked is None:
                     continue
-                variants.add(checked[1].get("variant", ""))
                 ref_name = refs[entry.reference] = f"ref-{maker._hash(entry.reference)[:12]}"
             stem = f"{folder}/{conf.id}-v{entry.view:02d}"
             ref_stem = f"{folder}/{ref_name}"
@@ -233,7 +229,7 @@ def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> tuple[dict, set
             views[str(entry.view)] = view
         configs.append({"id": conf.id, "label": conf.label, "method": conf.method, "views": views})
     return {"stops": list(STOPS), "configs": configs,
-            "views": sorted({int(v) for c in configs for v in c["views"]})}, variants - {""}
+            "views": sorted({int(v) for c in configs for v in c["views"]})}
 
 
 def _copy(source: Path, site: Path, target: str) -> str:
@@ -260,7 +256,8 @@ def _overview(site: data_mod.SiteData) -> list[dict]:
     return rows
 
 
-def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root: Path, env) -> str:
+def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root: Path, env, *,
+                       maker_cache: Path | None) -> str:
     """A table's or figure's page from its newest complete report run (``--from-store``)."""
     work = Path(tempfile.mkdtemp(prefix=".reproduction-", dir=root))
     try:
@@ -292,7 +289,7 @@ def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root:
         rows = [r for r in site.rows if r.run_id in members]
         html = env.get_template("reproduction.html").render(
             item=item, header=header, table_rows=table_rows, notes=notes, images=images,
-            error=error, provenance=data_mod.provenance(rows),
+            error=error, provenance=data_mod.provenance(rows, cache=maker_cache),
             title=f"{item.kind} {item.name} ({item.profile})")
     finally:
         shutil.rmtree(work, ignore_errors=True)

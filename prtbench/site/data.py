@@ -267,13 +267,39 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
                     missing_reproductions=missing, rows=rows)
 
 
-def provenance(rows: list, *, variants: list[str] = ()) -> dict[str, str]:
-    """The footer's facts, each the distinct values of the rows (``n/a`` when none).
+def mitsuba_variants(rows: list, *, cache: Path | None = None) -> list[str]:
+    """The Mitsuba variants that rendered the path references of ``rows``' cached views.
 
-    ``variants`` are the Mitsuba variants read from the references' headers (rows do not
-    store it).
+    Rows do not store it; each cached path-traced reference records it in its header.
     """
+    from .. import renders
+    from ..imageio import read_exr_metadata
+
+    found, seen = set(), set()
+    for row in rows:
+        if row.reference_kind != "path" or not row.run_id:
+            continue
+        path = renders.entry_path(row.run_id, row.view, root=cache)
+        if not path.is_file():
+            continue
+        try:
+            ref = read_exr_metadata(path).get("reference", "")
+            if ref and ref not in seen:
+                seen.add(ref)
+                reference = (cache or renders.cache_root()) / ref
+                if reference.is_file():
+                    found.add(read_exr_metadata(reference).get("variant", ""))
+        except PrtbenchError:  # an unreadable entry: the page shows it without images anyway
+            continue
+    return sorted(found - {""})
+
+
+def provenance(rows: list, *, cache: Path | None = None) -> dict[str, str]:
+    """The footer's facts, each the distinct values of the rows (``n/a`` when none); the
+    Mitsuba variant from the cached references' headers (:func:`mitsuba_variants`)."""
     from ..tradeoff.pareto import noise_ceiling_db
+
+    variants = mitsuba_variants(rows, cache=cache)
 
     def distinct(values) -> str:
         values = sorted({str(v) for v in values if v not in (None, "")})

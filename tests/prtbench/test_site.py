@@ -10,9 +10,11 @@ from collections import defaultdict
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from prtbench.cli import main
+from prtbench.reference import select_variant
 from prtbench.reproduction import TABLES, run_table
 from prtbench.results import ResultsStore
 from prtbench.site.build import MARKER, build, fmt
@@ -190,7 +192,7 @@ def test_every_number_on_the_index_is_the_stores(store, site):
     ceilings = [noise_ceiling_db(r.reference_noise) for r in rows]
     assert f"{min(ceilings):.2f} to {max(ceilings):.2f}" in footer
     assert f'data-provenance="reference spp">{rows[0].reference_spp}<' in footer
-    assert rows[0].renderer in footer and rows[0].git_sha in footer and "llvm_ad_rgb" in footer
+    assert rows[0].renderer in footer and rows[0].git_sha in footer and select_variant() in footer
 
 
 def test_table_page_equals_the_table_from_the_store(store, site, tmp_path):
@@ -220,6 +222,9 @@ def test_links_and_images_resolve_inside_the_site_and_the_index_is_small(site):
                       if l.split("#")[0].startswith("static/")) + (site / "index.html").stat().st_size
     assert index_bytes < 2 * 2**20
     assert "plotly" not in (site / "index.html").read_text()
+    for page in pages:  # the provenance footer, Mitsuba variant included, on every page
+        text = page.read_text()
+        assert 'id="provenance"' in text and f'data-provenance="Mitsuba variant">{select_variant()}<' in text, page
 
 
 def test_images_are_the_display_images_and_are_made_once(store, site, tmp_path):
@@ -301,3 +306,35 @@ def test_out_that_is_not_a_site_is_refused(store, tmp_path, capsys):
     (tmp_path / "file").write_text("x")
     assert main(["report", "--results", str(store), "--out", str(tmp_path / "file")]) == 2
     assert "is a file" in capsys.readouterr().err
+
+
+def test_render_cache_entries_are_checked(tmp_path, monkeypatch):
+    from prtbench import renders
+
+    monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path))
+    image = np.linspace(0.0, 4.0, 48 * 64 * 3, dtype=np.float32).reshape(48, 64, 3)
+    path = renders.store("run1", 0, image, exposure=1.5, reference_image=image * 0.5)
+    entry = renders.load("run1", 0)
+    assert entry.exposure == 1.5 and entry.path == path
+    np.testing.assert_allclose(entry.image, image, rtol=1e-3, atol=1e-3)  # half floats
+    reference, _ = renders.load_reference(entry.reference_path)
+    np.testing.assert_allclose(reference, image * 0.5, rtol=1e-3, atol=1e-3)
+    # Past the kept views, or not finite: nothing stored.
+    assert renders.store("run1", renders.MAX_VIEWS, image, exposure=1.0) is None
+    assert renders.store("run1", 1, image * np.nan, exposure=1.0) is None
+    assert sorted(p.name for p in path.parent.iterdir()) == ["view00-reference.exr", "view00.exr"]
+    # An edited entry (here: its pixels) is not shown, never trusted.
+    from prtbench.imageio import read_exr_metadata, write_exr
+
+    write_exr(path, image * 2.0, metadata=read_exr_metadata(path), half=True)
+    assert renders.load("run1", 0) is None
+    assert renders.load("nosuchrun", 0) is None
+
+
+def test_rows_without_cached_images_are_shown_without_images(store, tmp_path):
+    out = tmp_path / "site"
+    build(results_path=store, out=out, cache=tmp_path / "empty-cache", echo=False)
+    page = (out / "scene-plants-sky-smoke.html").read_text()
+    assert "<img" not in page and "No cached images" in page
+    assert "(no cached images)" in page and 'id="compare-data"' not in page
+    assert not list((tmp_path / "empty-cache").rglob("*.png"))  # nothing made from nothing
