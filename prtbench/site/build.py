@@ -208,7 +208,7 @@ def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> dict:
                 checked = renders.load_reference(entry.reference)
                 if checked is None:
                     continue
-                ref_name = refs[entry.reference] = f"ref-{maker._hash(entry.reference)[:12]}"
+                ref_name = refs[entry.reference] = f"ref-{maker.source_hash(entry.reference)[:12]}"
             stem = f"{folder}/{conf.id}-v{entry.view:02d}"
             ref_stem = f"{folder}/{ref_name}"
             e = entry.exposure

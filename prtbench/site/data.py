@@ -16,7 +16,6 @@ reference it was compared with); a row whose images are gone is shown without th
 from __future__ import annotations
 
 import json
-import math
 import re
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -143,12 +142,17 @@ class SiteData:
 
 
 def _knobs(method: str, config: dict, profile: str) -> str:
-    from ..tradeoff.pareto import Point
-    from ..tradeoff.pareto_report import _knobs as knobs
+    """The knobs that differ from the method's config in ``profile``, ``k=v`` (the whole
+    config if the method is no longer registered), as the Pareto reports print them."""
+    from .. import config as config_mod
+    from ..method import METHODS
 
-    return knobs(Point(method=method, config=config, scene="", variant="", light="", profile=profile,
-                       width=0, height=0, error=math.nan, error_unclipped=math.nan, clipped=False,
-                       ceiling_db=None, cost=math.nan, views=0, rows=0, run_ids=[]))
+    try:
+        defaults = config_mod.to_dict(METHODS.get(method).make_config({}, profile=profile))
+    except PrtbenchError:  # a method no longer registered, or a profile it rejects
+        defaults = {}
+    changed = {k: v for k, v in sorted(config.items()) if defaults.get(k, object()) != v}
+    return ", ".join(f"{k}={v}" for k, v in changed.items()) or "(profile defaults)"
 
 
 def _config_key(row) -> tuple:

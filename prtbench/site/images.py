@@ -65,7 +65,8 @@ class ImageMaker:
         #: PNGs made now versus found in the cache (the build prints both).
         self.made = self.reused = 0
 
-    def _hash(self, path: Path) -> str:
+    def source_hash(self, path: Path) -> str:
+        """SHA-256 of a source EXR's bytes (computed once per build)."""
         if path not in self._hashes:
             self._hashes[path] = _file_hash(path)
         return self._hashes[path]
@@ -103,7 +104,7 @@ class ImageMaker:
         """Full-size display PNG of ``exr`` at ``ev`` stops; returns ``target`` (site-relative)."""
         from ..imageio import display
 
-        return self._png(("display", self._hash(exr), repr(float(exposure)), int(ev)),
+        return self._png(("display", self.source_hash(exr), repr(float(exposure)), int(ev)),
                          lambda: display(self._linear(exr), exposure=float(exposure) * 2.0 ** ev),
                          target)
 
@@ -111,7 +112,7 @@ class ImageMaker:
         """Thumbnail (0 EV display, longest side :data:`THUMB_SIZE`) of ``exr``."""
         from ..imageio import display
 
-        return self._png(("thumb", self._hash(exr), repr(float(exposure)), THUMB_SIZE),
+        return self._png(("thumb", self.source_hash(exr), repr(float(exposure)), THUMB_SIZE),
                          lambda: _shrink(display(self._linear(exr), exposure=float(exposure))),
                          target)
 
@@ -126,7 +127,7 @@ class ImageMaker:
                               display(self._linear(reference), exposure=float(exposure)))
             return _shrink(image) if thumb else image
 
-        return self._png(("flip", self._hash(render), self._hash(reference), repr(float(exposure)),
+        return self._png(("flip", self.source_hash(render), self.source_hash(reference), repr(float(exposure)),
                           THUMB_SIZE if thumb else 0), make, target)
 
 

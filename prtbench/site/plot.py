@@ -10,7 +10,6 @@ configuration's id (``customdata``), which the page uses to open its images on c
 from __future__ import annotations
 
 import json
-import math
 
 #: Marker symbols by a method's place among the registered methods (matches the PNG plots'
 #: idea of one shape and colour per method).
@@ -82,6 +81,3 @@ def _hover(c) -> str:
             f"<br>masked FLIP {flip}<br>frame {p.cost:.4g} ms<br>"
             f"{'on the front' if not p.dominated else 'dominated'}; click: images")
 
-
-def finite(value) -> bool:
-    return value is not None and isinstance(value, (int, float)) and math.isfinite(value)
