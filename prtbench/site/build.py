@@ -259,6 +259,8 @@ def _overview(site: data_mod.SiteData) -> list[dict]:
 def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root: Path, env, *,
                        maker_cache: Path | None) -> str:
     """A table's or figure's page from its newest complete report run (``--from-store``)."""
+    from .. import measurements
+
     work = Path(tempfile.mkdtemp(prefix=".reproduction-", dir=root))
     try:
         header, table_rows, notes, images = [], [], "", []
@@ -289,7 +291,9 @@ def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root:
         rows = [r for r in site.rows if r.run_id in members]
         html = env.get_template("reproduction.html").render(
             item=item, header=header, table_rows=table_rows, notes=notes, images=images,
-            error=error, provenance=data_mod.provenance(rows, cache=maker_cache),
+            error=error, provenance=data_mod.provenance(
+                rows, cache=maker_cache,
+                measured=measurements.provenance(item.report.run_id, results_path=site.results_path)),
             title=f"{item.kind} {item.name} ({item.profile})")
     finally:
         shutil.rmtree(work, ignore_errors=True)

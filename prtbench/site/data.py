@@ -298,9 +298,13 @@ def mitsuba_variants(rows: list, *, cache: Path | None = None) -> list[str]:
     return sorted(found - {""})
 
 
-def provenance(rows: list, *, cache: Path | None = None) -> dict[str, str]:
+def provenance(rows: list, *, cache: Path | None = None, measured: list[dict] = ()) -> dict[str, str]:
     """The footer's facts, each the distinct values of the rows (``n/a`` when none); the
-    Mitsuba variant from the cached references' headers (:func:`mitsuba_variants`)."""
+    Mitsuba variant from the cached references' headers (:func:`mitsuba_variants`).
+
+    ``measured`` adds the (profile, git_sha, renderer, device) of a report run's measurement
+    rows (:func:`prtbench.measurements.provenance`): a figure of panels stores few result rows.
+    """
     from ..tradeoff.pareto import noise_ceiling_db
 
     variants = mitsuba_variants(rows, cache=cache)
@@ -312,12 +316,12 @@ def provenance(rows: list, *, cache: Path | None = None) -> dict[str, str]:
     ceilings = [c for c in (noise_ceiling_db(r.reference_noise) for r in rows
                             if r.reference_kind == "path") if c is not None]
     return {
-        "git sha": distinct(r.git_sha for r in rows),
-        "profile": distinct(r.profile for r in rows),
-        "GL renderer": distinct(r.renderer for r in rows),
+        "git sha": distinct([*(r.git_sha for r in rows), *(m["git_sha"] for m in measured)]),
+        "profile": distinct([*(r.profile for r in rows), *(m["profile"] for m in measured)]),
+        "GL renderer": distinct([*(r.renderer for r in rows), *(m["renderer"] for m in measured)]),
         "timing": distinct(r.timing_source for r in rows),
         "Mitsuba variant": distinct(variants),
-        "machine": distinct(r.device for r in rows),
+        "machine": distinct([*(r.device for r in rows), *(m["device"] for m in measured)]),
         "reference spp": distinct(r.reference_spp for r in rows if r.reference_kind == "path"),
         "noise ceiling (dB)": (f"{min(ceilings):.2f} to {max(ceilings):.2f}" if ceilings else "n/a"),
     }
