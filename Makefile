@@ -9,7 +9,7 @@ ifneq (,$(wildcard $(LIBLLVM)))
 export DRJIT_LIBLLVM_PATH ?= $(LIBLLVM)
 endif
 
-.PHONY: setup test test-slow test-assets bench assets demo regress regress-update tables figures pareto clean
+.PHONY: setup test test-slow test-assets test-browser bench assets demo regress regress-update tables figures pareto report clean
 
 setup: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
@@ -24,6 +24,11 @@ $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
 test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric regression
 	$(PY) -m pytest -q
 	$(PRTBENCH) regress
+	@if command -v chromium >/dev/null; then $(MAKE) --no-print-directory test-browser; \
+	else echo "test-browser skipped: chromium is not installed (make setup installs it as root)"; fi
+
+test-browser: setup  ## the comparison site in headless Chromium (screenshots in reports/site/screenshots)
+	$(PY) -m pytest -q -m browser tests/prtbench/test_site_browser.py
 
 test-slow: setup  ## heavier tests (marked slow)
 	$(PY) -m pytest -q -m slow
@@ -85,6 +90,10 @@ pareto: setup
 	-$(PRTBENCH) sweep sweeps/room-all.toml --profile $(PROFILE) --timing-serial
 	$(PRTBENCH) pareto --scene plants --light sky --profile $(PROFILE)
 	$(PRTBENCH) pareto --scene room --light sky --profile $(PROFILE)
+
+# The comparison site from the results store (run `make pareto` first): reports/site/index.html.
+report: setup  ## static HTML comparison site from the store and the image cache
+	$(PRTBENCH) report --out reports/site
 
 clean:
 	rm -rf out results .pytest_cache

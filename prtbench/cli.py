@@ -261,6 +261,17 @@ def _pareto(args: argparse.Namespace) -> int:
     return 0
 
 
+def _report(args: argparse.Namespace) -> int:
+    from .results import default_path
+    from .site.build import build
+
+    summary = build(results_path=Path(args.results) if args.results else default_path(),
+                    out=Path(args.out), echo=not args.quiet)
+    print(f"wrote {len(summary.pages)} pages to {summary.out} ({summary.images_made} images made, "
+          f"{summary.images_reused} from the cache); open {summary.out / 'index.html'}")
+    return 0
+
+
 def _sweep(args: argparse.Namespace) -> int:
     from .config import parse_overrides
     from .tradeoff import grid
@@ -449,6 +460,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default=None)
     p.add_argument("--reports", default="reports")
     p.set_defaults(func=_pareto)
+
+    p = sub.add_parser("report", help="the static HTML comparison site, from the results store")
+    p.add_argument("--results", default=None, help="results database (default results/prtbench.sqlite)")
+    p.add_argument("--out", default="reports/site", help="site folder (replaced when complete)")
+    p.add_argument("--quiet", action="store_true", help="no per-page progress lines")
+    p.set_defaults(func=_report)
 
     p = sub.add_parser("sweep", help="run a grid of methods and knobs (TOML file or options) on Dask")
     p.add_argument("file", nargs="?", default=None, help="sweep file (sweeps/*.toml)")

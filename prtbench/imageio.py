@@ -134,11 +134,15 @@ def read_exr(path: str | Path) -> np.ndarray:
     return image
 
 
-def write_exr(path: str | Path, image: np.ndarray, *, metadata: dict[str, str] | None = None) -> None:
-    """Atomically write float32 (H, W, 3) linear RGB to an EXR (ZIP compression)."""
+def write_exr(path: str | Path, image: np.ndarray, *, metadata: dict[str, str] | None = None,
+              half: bool = False) -> None:
+    """Atomically write float32 (H, W, 3) linear RGB to an EXR (ZIP compression).
+
+    ``half`` stores 16-bit floats instead (display-only images: half the bytes).
+    """
     import OpenEXR
 
-    image = np.ascontiguousarray(image, dtype=np.float32)
+    image = np.ascontiguousarray(image, dtype=np.float16 if half else np.float32)
     if image.ndim != 3 or image.shape[2] != 3:
         raise InvalidInputError(f"write_exr expects (H, W, 3), got {image.shape}")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}

@@ -298,3 +298,14 @@ def require_report(kind: str, name: str, *, profile: str,
             f"'{path}'; measure it first with: prtbench {kind} {name} --profile {profile} "
             f"--results {path}")
     return report
+
+
+def provenance(run_id: str, *, results_path: str | Path | None = None) -> list[dict[str, str]]:
+    """The distinct (profile, git_sha, renderer, device) of the measurement rows of ``run_id``.
+
+    What a report run that stored no result rows of its own (a figure of panels) was measured
+    with; the comparison site prints it in the page's provenance footer.
+    """
+    found = _read(results_path, "SELECT DISTINCT profile, git_sha, renderer, device FROM "
+                  "measurements WHERE run_id = ?", [run_id])
+    return [dict(zip(("profile", "git_sha", "renderer", "device"), r)) for r in found]

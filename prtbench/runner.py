@@ -237,7 +237,7 @@ def _log(echo: bool, message: str) -> None:
 
 def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) -> RunSummary:
     """Run a prepared job; returns its summary (and writes files / rows as requested)."""
-    from . import imageio, metrics
+    from . import imageio, metrics, renders
     from .reference import render_reference
 
     req, scene, light = prepared.request, prepared.scene, prepared.light
@@ -285,6 +285,10 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                           for key in (name, f"{name}_masked")}
                 test_d = np.nan_to_num(test_d, nan=0.0)  # for the PNGs
             reason = degenerate_reason(image, test_d, ref_d, mask, values)
+            # Kept for the comparison site (sweeps write no image files): prtbench/renders.py.
+            renders.store(run_id, index, image, exposure=scene.exposure,
+                          reference_file=ref.path if ref_renderer is None else None,
+                          reference_image=ref_image if ref_renderer is not None else None)
             times = renderer.frame_time(view, light, warmup=prepared.profile.timing_warmup,
                                         frames=prepared.profile.timing_frames)
             files: dict[str, str] = {}
