@@ -50,9 +50,9 @@ class WaveletVertexConfig:
                               low=1, high=16)
     keep: float = knob(0.25, "Transport coefficients kept per vertex: a fraction in (0, 1] of "
                              "the 6·N², or an integer count > 1 (largest magnitudes; exact zeros "
-                             "are never stored).", low=1e-9)
+                             "are never stored).", low=1e-9, high=6 * 1024**2)
     light_terms: int = knob(100, "k: lighting wavelet coefficients used per frame (non-linear "
-                                 "approximation; at most 6·N²).", low=1)
+                                 "approximation; at most 6·N²).", low=1, high=6 * 1024**2)
     selection: str = knob("area", "How the k lighting terms are chosen each frame: largest "
                                   "magnitude, area-weighted magnitude (Ng 2003) or "
                                   "transport-weighted magnitude (× mean |T| over vertices).",
