@@ -80,10 +80,19 @@ class SparseTransport:
         """
         if storage not in STORAGE_DTYPES:
             raise InvalidInputError(f"storage '{storage}'; accepted: {', '.join(STORAGE_DTYPES)}")
-        points = np.asarray(points, dtype=np.int64)
-        coeffs = np.asarray(coeffs, dtype=np.int64)
-        values = np.asarray(values, dtype=np.float64)
-        order = np.lexsort((points, coeffs))  # by coefficient, then point
+        points, coeffs, values = np.asarray(points), np.asarray(coeffs), np.asarray(values)
+        if points.dtype.kind not in "iu" or coeffs.dtype.kind not in "iu":
+            raise InvalidInputError("sparse transport entries need integer point and "
+                                    "coefficient indices")
+        if values.dtype.kind != "f":
+            values = values.astype(np.float64)
+        # By coefficient, then point: a stable sort of the coefficient (radix sort for 16-bit
+        # keys) after ordering by point, which the transport's chunks already deliver.
+        if len(points) > 1 and np.any(points[1:] < points[:-1]):
+            by_point = np.argsort(points, kind="stable")
+            points, coeffs, values = points[by_point], coeffs[by_point], values[by_point]
+        key = coeffs.astype(np.uint16) if n_coeffs <= 1 << 16 else coeffs
+        order = np.argsort(key, kind="stable")
         points, coeffs, values = points[order], coeffs[order], values[order]
         indptr = np.zeros(n_coeffs + 1, dtype=np.int64)
         np.cumsum(np.bincount(coeffs, minlength=n_coeffs), out=indptr[1:])
