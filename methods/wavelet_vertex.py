@@ -20,23 +20,18 @@ and is not timed, as the SH projection of ``vertex`` is not).
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
-from statistics import fmean, median
 
 import numpy as np
 
-from prtbench.config import check_memory, knob
+from prtbench.config import knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Method, register_method
 from prtbench.wavelet.sparse import SparseTransport
 
 from ._raster import RasterRenderer
-
-SELECTIONS = ("magnitude", "area", "transport")
-STORAGES = ("float32", "float16", "int8")
-#: Memory of a chunk's ray buffers and Haar work arrays on top of the stored transport (bytes).
-_WORKING_BYTES = 512 << 20
+from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_config,
+                              host_frame_times)
 
 
 @dataclass(frozen=True)
@@ -65,25 +60,8 @@ class WaveletVertexConfig:
 
 def _check_config(scene, config: WaveletVertexConfig) -> tuple[int, int]:
     """(coefficients per vertex, kept per vertex); one-line errors for bad values."""
-    from prtbench.wavelet.cubemap import check_resolution
-    from prtbench.wavelet.sparse import VALUE_BYTES, row_dtype
-    from prtbench.wavelet.transport import keep_count
-
-    n = check_resolution(config.cubemap, what="cubemap")
-    m = 6 * n * n
-    if config.light_terms > m:
-        raise InvalidInputError(f"light_terms={config.light_terms} exceeds the {m} wavelet "
-                                f"coefficients of a cubemap={n} (6·N²); accepted: 1..{m}")
-    kept = keep_count(config.keep, m)
-    vertices = scene.n_vertices
-    entry = VALUE_BYTES[config.storage] + row_dtype(vertices).itemsize
-    # Stored entries at most (vertices × kept), built from per-chunk triples (int64 point and
-    # coefficient, float64 value: 24 bytes) and sorted once: ~2 copies of those at the peak.
-    need = vertices * kept * (entry + 2 * 24) + _WORKING_BYTES
-    check_memory(f"method 'wavelet-vertex' cubemap={n} keep={config.keep:g} ({kept} of {m} "
-                 f"coefficients) on {vertices} vertices", need,
-                 accepted="a smaller cubemap or keep")
-    return m, kept
+    return check_wavelet_config("wavelet-vertex", config, points=scene.n_vertices,
+                                what="vertices")
 
 
 @register_method("wavelet-vertex")
@@ -164,46 +142,19 @@ class WaveletVertexRenderer(RasterRenderer):
 
     def __init__(self, scene, artifact: Artifact, config: WaveletVertexConfig, *, width: int,
                  height: int):
-        from prtbench.wavelet import haar
         self.config = config
         self.transport = SparseTransport.from_arrays(artifact.arrays)
-        n = config.cubemap
         super().__init__(scene, width=width, height=height, vertex_shader="wavelet_vertex.vert",
                          fragment_shader="vertex_prt.frag", defines={})
-        # Per-coefficient weights of the selection rule: resident, read every frame.
-        if config.selection == "area":
-            self.weights = haar.support_solid_angles(n).reshape(-1).astype(np.float32)
-        elif config.selection == "transport":
-            self.weights = self.transport.column_mean_abs()
-        else:
-            self.weights = None
+        self.relight = Relighter(self.transport, config)
+        self.weights = self.relight.weights
         self.incident = self.ctx.buffer(reserve=12 * self.transport.n_points)
         self._resident = [self.incident]
-        self._cubes: dict[str, np.ndarray] = {}
-        #: Terms selected in the last frame (inspection and tests).
-        self.last_terms: np.ndarray | None = None
 
-    def _light_cube(self, light) -> np.ndarray:
-        """(3, 6, N, N) texel-mean radiance of ``light`` (per light, not per frame)."""
-        from prtbench.wavelet.cubemap import light_cubemap
-
-        key = light.content_hash()
-        if key not in self._cubes:
-            self._cubes = {key: np.ascontiguousarray(
-                np.moveaxis(light_cubemap(light, self.config.cubemap), -1, 0))}
-        return self._cubes[key]
-
-    def relight(self, light) -> np.ndarray:
-        """(V, 3) float32 Σ_{i in k} T_vi L_i for ``light``: the per-frame CPU work."""
-        from prtbench.wavelet import haar
-        from prtbench.wavelet.selection import select_terms
-
-        coeffs = haar.forward(self._light_cube(light)).reshape(3, -1).T  # (6N², 3)
-        rule = {"area": {"support": self.weights},
-                "transport": {"transport_weight": self.weights}}.get(self.config.selection, {})
-        terms = select_terms(coeffs, self.config.light_terms, rule=self.config.selection, **rule)
-        self.last_terms = terms
-        return self.transport.relight(coeffs, terms).astype(np.float32)
+    @property
+    def last_terms(self) -> np.ndarray | None:
+        """Lighting terms selected in the last frame (inspection and tests)."""
+        return self.relight.last_terms
 
     def _bind(self, view, light) -> None:
         self.incident.write(np.ascontiguousarray(self.relight(light)).tobytes())
@@ -211,24 +162,10 @@ class WaveletVertexRenderer(RasterRenderer):
 
     def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
         """Host clock around whole frames (CPU relighting + upload + draw + glFinish)."""
-        if int(warmup) != warmup or warmup < 1 or int(frames) != frames or frames < 1:
-            raise InvalidInputError(f"warmup={warmup!r}, frames={frames!r}; accepted: "
-                                    "integers >= 1")
-        self._light_cube(light)  # per light, outside the frame
-        for _ in range(int(warmup)):
-            self._draw(view, light)
-        self.ctx.finish()
-        samples = []
-        for _ in range(int(frames)):
-            start = time.perf_counter()
-            self._draw(view, light)
-            self.ctx.finish()
-            samples.append((time.perf_counter() - start) * 1e3)
-        return FrameTimes(float(median(samples)), float(np.percentile(samples, 95)),
-                          float(fmean(samples)), int(frames), self.renderer_string,
-                          "wall+finish")
+        self.relight.light_cube(light)  # per light, outside the frame
+        return host_frame_times(self.ctx, lambda: self._draw(view, light), warmup=warmup,
+                                frames=frames, renderer=self.renderer_string)
 
     def memory_bytes(self) -> int:
         """Sparse transport + selection weights + the per-vertex radiance buffer."""
-        weights = 0 if self.weights is None else int(self.weights.nbytes)
-        return int(self.transport.nbytes + weights + self.incident.size)
+        return int(self.relight.nbytes + self.incident.size)
