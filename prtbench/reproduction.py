@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -93,7 +94,8 @@ class Reproduction:
                  f"Profile: `{profile}`. GL renderer: {distinct('renderer')}. "
                  f"Timing: {distinct('timing_source')} (`timer-query` = GL timer queries; "
                  f"`wall+finish` = host clock around draw + glFinish, used on software "
-                 f"rasterisers). Machine: {distinct('device')}. Git: {distinct('git_sha')}.", ""]
+                 f"rasterisers). Machine: {distinct('device')}. Git: {distinct('git_sha')}."
+                 f"{load_note([frame])}", ""]
         # Rows that name the path reference but compared nothing with it (own-harness timings)
         # carry no noise estimate.
         path_rows = frame[(frame["reference_kind"] == "path") & frame["reference_noise"].notna()
@@ -351,7 +353,34 @@ def provenance_line(frames: Sequence[Any], *, profile: str) -> str:
         return ", ".join(values) or "n/a"
 
     return (f"Measured with profile `{profile}` at git {distinct('git_sha')}. "
-            f"GL renderer: {distinct('renderer')}. Machine: {distinct('device')}.")
+            f"GL renderer: {distinct('renderer')}. Machine: {distinct('device')}."
+            f"{load_note(frames)}")
+
+
+#: A 1-minute load average above this many times the measuring machine's core count marks
+#: its timings as taken on a busy machine (one run alone, with llvmpipe's threads, stays
+#: under it).
+BUSY_LOAD_PER_CORE = 1.5
+
+
+def load_note(frames: Sequence[Any]) -> str:
+    """`` Load while measuring: …`` from the rows' ``load_average`` ('' where none is stored).
+
+    Says plainly when the largest load exceeds :data:`BUSY_LOAD_PER_CORE` × the cores named
+    in the rows' ``device`` ("…, 2 cores"): frame times and FPS are then not representative.
+    """
+    loads = [float(v) for f in frames if len(f) and "load_average" in f.columns
+             for v in f["load_average"] if v is not None and v == v]
+    if not loads:
+        return ""
+    cores = [int(m.group(1)) for f in frames if len(f) and "device" in f.columns
+             for d in f["device"] if isinstance(d, str)
+             for m in [re.search(r"(\d+) cores", d)] if m]
+    note = f" Load while measuring: 1-min load average {min(loads):.1f} to {max(loads):.1f}"
+    if cores and max(loads) > BUSY_LOAD_PER_CORE * min(cores):
+        note += (f" on {min(cores)} cores: the machine was busy, so frame times and FPS here "
+                 "are not representative")
+    return note + "."
 
 
 #: name -> Figure instance, lazily imported from ``reproductions``.

@@ -74,6 +74,10 @@ class ResultRow:
         time; so does a rebuild of a corrupt artifact whose time was recorded).
     renderer, device : str
         GL renderer string and the machine's description.
+    load_average : float or None
+        The machine's 1-minute load average when the row was measured (the run itself
+        counts about 1): a value well above the core count means the frame times were taken
+        on a busy machine. None where unknown (rows from before schema 5).
     git_sha : str
         Code version (:func:`git_sha`).
     profile : str
@@ -143,6 +147,7 @@ class ResultRow:
     scene_vertices: int | None = None
     workers: int = 1
     cell_key: str = ""
+    load_average: float | None = None
 
     def __post_init__(self) -> None:
         for name in _JSON_FIELDS:  # rows read back from text, or built by hand from JSON

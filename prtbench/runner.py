@@ -352,6 +352,17 @@ def device_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores"
 
 
+def load_average() -> float | None:
+    """The 1-minute load average (None where the OS has none), stored with every row so a
+    report can say when its timings were taken on a busy machine."""
+    import os
+
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return None
+
+
 def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
                  cell_key: str = "") -> list:
     """The result rows (one per view) of a run, without storing them.
@@ -399,7 +410,8 @@ def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
             scene_triangles=scene.n_triangles, scene_params=dict(scene.params),
             timing_source=v.timing_source, status=v.status, status_reason=reason,
             precompute_rebuilt=summary.precompute_rebuilt, covered_pixels=v.covered_pixels,
-            scene_vertices=scene.n_vertices, workers=workers, cell_key=cell_key))
+            scene_vertices=scene.n_vertices, workers=workers, cell_key=cell_key,
+            load_average=load_average()))
     return rows
 
 

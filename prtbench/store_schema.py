@@ -1,4 +1,4 @@
-"""The results store's schema: versions, the foreign-file checks and the migrations (2 → 3 → 4).
+"""The results store's schema: versions, the foreign-file checks and the migrations (2 → … → 5).
 
 :mod:`prtbench.results` owns the rows; this module owns what makes an SQLite file *ours*:
 a ``meta`` table holding ``schema_version`` and a ``renders`` table with our columns. Other
@@ -15,19 +15,21 @@ from pathlib import Path
 from . import strict_json
 from .errors import InvalidInputError, PrtbenchError
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 #: Older schema versions this prtbench reads and migrates.
-MIGRATABLE = (2, 3)
+MIGRATABLE = (2, 3, 4)
 #: Columns added after schema 2, with the values old rows get. Schema 3: the status columns;
 #: schema 4: what the trade-off needs (covered pixels and vertex count for the operation-count
-#: cost model, the sweep's worker count and cell key).
+#: cost model, the sweep's worker count and cell key); schema 5: the machine's load average
+#: while timing (old rows: unknown).
 ADDED_COLUMNS = {"status": "TEXT NOT NULL DEFAULT 'ok'",
                  "status_reason": "TEXT NOT NULL DEFAULT ''",
                  "precompute_rebuilt": "INTEGER NOT NULL DEFAULT 0",
                  "covered_pixels": "INTEGER",
                  "scene_vertices": "INTEGER",
                  "workers": "INTEGER NOT NULL DEFAULT 1",
-                 "cell_key": "TEXT NOT NULL DEFAULT ''"}
+                 "cell_key": "TEXT NOT NULL DEFAULT ''",
+                 "load_average": "REAL"}
 _SQLITE_HEADER = b"SQLite format 3\x00"
 
 
@@ -85,7 +87,7 @@ def render_columns(conn: sqlite3.Connection, path: Path, *, version: int,
 
 def migrate(conn: sqlite3.Connection, *, json_fields: Sequence[str],
             to_json: Callable[[object], str]) -> None:
-    """Schema 2 or 3 → 4 inside the caller's transaction.
+    """Schema 2, 3 or 4 → 5 inside the caller's transaction.
 
     Adds the missing columns (old rows 'ok', one worker, no cell key, unknown coverage) and,
     for schema 2, rewrites JSON holding NaN/Infinity tokens as

@@ -120,6 +120,8 @@ def test_a_normal_run_is_ok(tmp_path):
     mask = geometry_mask(scene, scene.trajectory.views[0], row.width, row.height)
     assert row.covered_pixels == int(mask.sum()) > 0 and row.scene_vertices == scene.n_vertices
     assert row.workers == 1 and row.cell_key == ""
+    # The machine's load when the row was measured (the report flags busy-machine timings).
+    assert row.load_average is not None and 0.0 <= row.load_average < 1e3
     assert json.loads(request.json_path.read_text(), parse_constant=_no_constant)["status"] == "ok"
 
 
@@ -416,3 +418,35 @@ def test_schema_3_store_gains_the_trade_off_columns_on_append(tmp_path):
     conn = sqlite3.connect(path)
     assert conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone() == (str(SCHEMA_VERSION),)
     conn.close()
+
+
+def test_schema_4_store_gains_the_load_average_on_append(tmp_path):
+    """Schema 4 → 5: the machine's load while timing is added; old rows read it as unknown."""
+    path = tmp_path / "v4.sqlite"
+    ResultsStore(path).append([ResultRow(method="vertex", scene="plane", profile="smoke")])
+    conn = sqlite3.connect(path)
+    conn.execute("ALTER TABLE renders DROP COLUMN load_average")
+    conn.execute("UPDATE meta SET value = '4' WHERE key = 'schema_version'")
+    conn.commit()
+    conn.close()
+    assert ResultsStore(path, readonly=True).query()[0].load_average is None
+    ResultsStore(path).append([ResultRow(method="vertex", scene="plane", profile="smoke",
+                                         load_average=0.75)])
+    assert [r.load_average for r in ResultsStore(path, readonly=True).query()] == [None, 0.75]
+    conn = sqlite3.connect(path)
+    assert conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone() == (
+        str(SCHEMA_VERSION),)
+    conn.close()
+
+
+def test_load_average_is_the_os_one_minute_figure_or_unknown(monkeypatch):
+    from prtbench.runner import load_average
+
+    monkeypatch.setattr(os, "getloadavg", lambda: (3.5, 2.0, 1.0))
+    assert load_average() == 3.5
+
+    def unavailable():
+        raise OSError("no load average here")
+
+    monkeypatch.setattr(os, "getloadavg", unavailable)
+    assert load_average() is None
