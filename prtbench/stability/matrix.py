@@ -1,0 +1,126 @@
+"""The stability matrix: every case of every chosen method, measured, classified and stored.
+
+Each case's numbers go into the results store as one row of the measurement table
+``stability`` (:mod:`prtbench.measurements`), the moment the case finishes, so an interrupted
+matrix keeps what it measured; the render rows the runner writes carry the same case name in
+their ``scene_params``. When every case has run, a ``table stability`` report run names the
+runner runs it used: the report (:mod:`prtbench.stability.report`) prints only stored rows.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from .cases import Case, base_case, method_cases, select
+from .outcome import classify
+
+#: Name of the measurement table (and of the report run).
+TABLE = "stability"
+
+
+def _log(echo: bool, text: str) -> None:
+    if echo:
+        print(text, file=sys.stderr, flush=True)
+
+
+def plan(methods: Sequence[str], *, profile: str,
+         cases: Sequence[str] | None = None) -> list[tuple[str, dict[str, Any], list[Case]]]:
+    """``(method, base case, cases)`` for each method, validated before any work.
+
+    Raises
+    ------
+    UnknownNameError
+        An unknown method, profile or case name.
+    """
+    from ..method import METHODS
+
+    out = []
+    known: set[str] = set()
+    for method in methods:
+        cls = METHODS.get(method)
+        all_cases = method_cases(cls, profile=profile)
+        known |= {c.name for c in all_cases}
+        chosen = [c for c in all_cases if not cases or c.name == "moderate" or c.name in cases]
+        out.append((method, base_case(cls), chosen))
+    missing = [name for name in cases or () if name not in known]
+    if missing:  # a case name must belong to at least one of the methods
+        select([Case(n, "") for n in sorted(known)], missing)  # raises, listing the names
+    return out
+    return out
+
+
+def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | None,
+               out_dir: Path | None = None, cases: Sequence[str] | None = None,
+               timeout_s: float | None = None, echo: bool = True) -> str:
+    """Measure every case of ``methods``; returns the report run's id.
+
+    Parameters
+    ----------
+    methods : sequence of str
+        Registered method names.
+    profile : {"smoke", "quick"}
+    results_path : Path or None
+        The results store (None: the default one).
+    out_dir : Path, optional
+        Where the runs' images go (default: a temporary folder, removed afterwards).
+    cases : sequence of str, optional
+        Only these case names (the moderate case always runs first).
+    timeout_s : float, optional
+        Per-case limit (default :data:`prtbench.stability.run.TIMEOUTS`).
+    echo : bool
+        One progress line per case on stderr.
+    """
+    from .. import measurements
+    from ..runner import device_description
+    from .run import run_case
+
+    planned = plan(methods, profile=profile, cases=cases)
+    run_id = measurements.new_run_id()
+    members: dict[str, dict[str, str]] = {}
+    device = device_description()
+    with tempfile.TemporaryDirectory(prefix="prtbench-stability-") as tmp:
+        root = Path(out_dir) if out_dir is not None else Path(tmp)
+        for method, base, method_cases_ in planned:
+            moderate: dict[str, Any] | None = None
+            moderate_exr = None
+            for case in method_cases_:
+                folder = root / method / case.name.replace("=", "-").replace("/", "-")
+                measured = run_case(method, case, profile=profile, base=base,
+                                    results_path=results_path, out_dir=folder,
+                                    moderate_exr=moderate_exr, timeout_s=timeout_s)
+                is_moderate = case.name == "moderate"
+                outcome, reason = classify(measured, None if is_moderate else (moderate or {}))
+                if is_moderate:
+                    moderate, moderate_exr = measured, measured.get("image_exr")
+                row = {"method": method, "case": case.name, "group": case.group,
+                       "note": case.note, "advice": case.advice,
+                       "overrides": dict(case.overrides), "scene": base["scene"],
+                       "variant": "glossy" if case.shininess is not None else base["variant"],
+                       "outcome": outcome, "reason": reason,
+                       "moderate_psnr_masked": (moderate or {}).get("psnr_masked"),
+                       "moderate_flip_masked": (moderate or {}).get("flip_masked"),
+                       **{k: v for k, v in measured.items() if k != "image_exr"}}
+                measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
+                                    profile=profile, renderer=measured.get("renderer") or "",
+                                    device=device)
+                if measured.get("run_id"):
+                    members[measured["run_id"]] = {"method": method, "case": case.name}
+                _log(echo, f"[stability] {method} {case.name}: {outcome} ({reason}) "
+                           f"{measured.get('wall_s', 0.0):.1f} s")
+    measurements.complete_report("table", TABLE, profile=profile, run_id=run_id,
+                                 members=members, results_path=results_path)
+    return run_id
+
+
+def load_rows(run_id: str, *, results_path: Path | None) -> list[dict[str, Any]]:
+    """The stored rows of one matrix run, in the order they were measured."""
+    from .. import measurements
+
+    frame = measurements.load(TABLE, run_ids=[run_id], results_path=results_path)
+    rows = frame.to_dict(orient="records")
+    return [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()}
+            for r in rows]
