@@ -251,11 +251,17 @@ def scene_cases(*, profile: str, sdf: bool) -> list[Case]:
     """Scale, translation and geometry cases (SDF scenes: scale and translation only)."""
     cases = [Case("scale=1e-04", "scene", scale=1e-4, note="scene scaled by 1e-4",
                   advice=SCALE_ADVICE, compare_image=True),
+             Case("scale=1e-02", "scene", scale=1e-2,
+                  note="scene scaled by 1e-2 (near the smallest the reference accepts)",
+                  advice=SCALE_ADVICE, compare_image=True),
              Case("scale=1e+04", "scene", scale=1e4, note="scene scaled by 1e4",
                   advice=SCALE_ADVICE, compare_image=True),
              Case("translate=1e+05", "scene", translate=1e5,
                   note="scene moved 1e5 from the origin (float32 positions)",
-                  advice=SCALE_ADVICE, compare_image=True)]
+                  advice=SCALE_ADVICE, compare_image=True),
+             Case("translate=5e+02", "scene", translate=5e2,
+                  note="scene moved 500 from the origin (near the farthest the reference "
+                       "accepts at scale 1)", advice=SCALE_ADVICE, compare_image=True)]
     if sdf:
         return cases
     geometry = [("grazing", "camera 1e-3 of the diagonal above the ground, looking along it",

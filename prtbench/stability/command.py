@@ -28,7 +28,9 @@ def run_command(args: argparse.Namespace) -> int:
         from ..errors import InvalidInputError
 
         raise InvalidInputError(f"--timeout {args.timeout}; accepted: seconds > 0")
-    methods = args.method or METHODS.names()
+    from .matrix import CORE
+
+    methods = args.method or [*METHODS.names(), CORE]
     results = Path(args.results) if args.results else None
     outputs.check_folder("--reports", Path(args.reports))
     if args.json:
@@ -66,7 +68,8 @@ def add_parser(sub) -> None:
     """The ``stability`` subparser."""
     p = sub.add_parser("stability", help="every method at the extremes of its knobs, lights "
                                          "and scenes: ok/degraded/refused/failed")
-    p.add_argument("--method", action="append", help="only these methods (default: all)")
+    p.add_argument("--method", action="append",
+                   help="only these methods, or sh-core (default: every method and sh-core)")
     p.add_argument("--profile", default="quick", help="smoke or quick (default quick)")
     p.add_argument("--case", action="append", help="only these cases (the moderate one always runs)")
     p.add_argument("--json", default=None, help="also write the rows here (strict JSON)")

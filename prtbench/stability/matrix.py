@@ -20,6 +20,8 @@ from .outcome import classify
 
 #: Name of the measurement table (and of the report run).
 TABLE = "stability"
+#: The pseudo-method of the SH core's rows (:mod:`prtbench.stability.core`).
+CORE = "sh-core"
 
 
 def _log(echo: bool, text: str) -> None:
@@ -41,6 +43,8 @@ def plan(methods: Sequence[str], *, profile: str,
     out = []
     known: set[str] = set()
     for method in methods:
+        if method == CORE:
+            continue
         cls = METHODS.get(method)
         all_cases = method_cases(cls, profile=profile)
         known |= {c.name for c in all_cases}
@@ -61,7 +65,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
     Parameters
     ----------
     methods : sequence of str
-        Registered method names.
+        Registered method names, and :data:`CORE` for the SH core's rows.
     profile : {"smoke", "quick"}
     results_path : Path or None
         The results store (None: the default one).
@@ -111,6 +115,13 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                     members[measured["run_id"]] = {"method": method, "case": case.name}
                 _log(echo, f"[stability] {method} {case.name}: {outcome} ({reason}) "
                            f"{measured.get('wall_s', 0.0):.1f} s")
+    if CORE in methods:
+        from .core import core_rows
+
+        for row in core_rows(profile=profile):
+            measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
+                                profile=profile, device=device)
+            _log(echo, f"[stability] {CORE} {row['case']}: {row['outcome']} ({row['reason']})")
     measurements.complete_report("table", TABLE, profile=profile, run_id=run_id,
                                  members=members, results_path=results_path)
     return run_id

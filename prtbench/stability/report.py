@@ -25,7 +25,7 @@ CSV_COLUMNS = (
     "image_peak", "reference_peak", "artifact_peak", "storage_dtype", "storage_max", "overflow",
     "underflow", "precompute_s", "precompute_cached", "memory_bytes", "artifact_bytes",
     "peak_rss_bytes", "frame_ms", "wall_s", "status", "run_id", "git_sha", "profile",
-    "renderer", "device", "advice", "note")
+    "renderer", "device", "ringing", "rel_l2", "advice", "note")
 
 
 def _num(value: Any, fmt: str = ".2f") -> str:
@@ -88,6 +88,14 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
+        if mine[0].get("group") == "sh-core":
+            lines += ["", f"## {method}", "", "SH projection of the case lights reconstructed on a "
+                      "64x128 grid (ringing: most negative over largest value; rel. L2 against "
+                      "the light), and the Phong zonal coefficients at 16 bands.", "",
+                      "| case | outcome | ringing | rel. L2 | reason |", "|---|---|---:|---:|---|"]
+            lines += [f"| {r['case']} | **{r['outcome']}** | {_num(r.get('ringing'), '.3f')} | "
+                      f"{_num(r.get('rel_l2'), '.3f')} | {_short(r.get('reason'))} |" for r in mine]
+            continue
         lines += ["", f"## {method}", "",
                   f"Base scene `{mine[0].get('scene')}`.", "",
                   "| case | outcome | PSNR_m | FLIP_m | vs mod. PSNR | peak/max | over | under "
