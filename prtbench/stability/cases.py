@@ -55,6 +55,9 @@ class KnobRule:
     note: str
     advice: str
     group: str = "knob"
+    #: Extreme lights each value is also measured under (a knob whose arithmetic scales with
+    #: the light: half-float storage, gamma-space transfer).
+    lights: tuple[str, ...] = ()
 
 
 def _both(*values: Any) -> dict[str, tuple[Any, ...]]:
@@ -68,10 +71,10 @@ KNOB_RULES: dict[str, KnobRule] = {
                          "use 3-5 bands (the moderate setting): 1-2 bands lose the shadow"),
     "storage": KnobRule(_both("float16"), "half-float transfer textures (overflow/underflow)",
                         "store float32 where coefficients exceed 65504 or matter below 6e-5",
-                        "storage"),
+                        "storage", lights=("huge-constant",)),
     "precision": KnobRule(_both("float16"), "half-float probe radiance (overflow/underflow)",
                           "store float32 where radiance exceeds 65504 or matters below 6e-5",
-                          "storage"),
+                          "storage", lights=("huge-constant",)),
     "texture_resolution": KnobRule({"smoke": ("low",), "quick": ("low", 2048)},
                                    "transfer texture at the smallest (and a large) resolution",
                                    "use >= 128 texels per side for the scene's shadow detail",
@@ -93,8 +96,9 @@ KNOB_RULES: dict[str, KnobRule] = {
                       "use basis <= configurations", "learning"),
     "configurations": KnobRule(_both("low"), "one lighting configuration: a rank-1 dataset",
                                "use >= 16 configurations", "learning"),
-    "gamma": KnobRule({"smoke": ("high",), "quick": ("low", "high")},
-                      "transfer stored at gamma 0.1 and 10", "keep gamma in 1..2.2", "learning"),
+    "gamma": KnobRule(_both("low", "high"),
+                      "transfer stored at gamma 0.1 and 10", "keep gamma in 1..2.2", "learning",
+                      lights=("huge-constant",)),
     "samples": KnobRule(_both(1, "low"), "training on 1 point (below the range) and the fewest",
                         "train on >= 10⁴ points", "learning"),
     "epochs": KnobRule(_both("low"), "a single training epoch", "train >= 20 epochs", "learning"),
@@ -141,9 +145,10 @@ class Case:
         (1, 1, 1)/√3.
     geometry : str
         ``""``, ``grazing`` (camera 10⁻³ of the diagonal above the ground, looking along it),
+        ``edge-on`` (the ground as one triangle, the camera in its plane),
         ``flipped-normals`` (the non-ground objects' normals negated), ``degenerate``
-        (zero-area and sliver triangles added to the ground) or ``coincident`` (the ground
-        duplicated in place).
+        (zero-area and sliver triangles added to the ground), ``t-junction`` (a T-junction
+        on the ground) or ``coincident`` (the ground duplicated in place).
     note, advice : str
         What the case probes; what to do instead when it is degraded.
     compare_image : bool
@@ -225,9 +230,12 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
             if choices is not None and value not in choices:
                 continue
             seen.add(value)
-            cases.append(Case(f"{f.name}={_format_value(value)}", rule.group,
-                              overrides={f.name: value}, note=rule.note, advice=rule.advice,
-                              compare_image=True))
+            name = f"{f.name}={_format_value(value)}"
+            cases.append(Case(name, rule.group, overrides={f.name: value}, note=rule.note,
+                              advice=rule.advice, compare_image=True))
+            cases += [Case(f"{name} light={light}", rule.group, overrides={f.name: value},
+                           light=light, note=f"{rule.note}, under the {light} light",
+                           advice=rule.advice) for light in rule.lights]
     return cases
 
 
@@ -267,14 +275,18 @@ def scene_cases(*, profile: str, sdf: bool) -> list[Case]:
     geometry = [("grazing", "camera 1e-3 of the diagonal above the ground, looking along it",
                  "avoid views in the plane of large flat surfaces (or raise the ground's "
                  "tessellation)"),
+                ("edge-on", "a single-triangle ground seen edge-on (camera in its plane)",
+                 "avoid views in the plane of large flat surfaces"),
                 ("flipped-normals", "object normals negated (winding kept)",
                  "fix the mesh's normals: surfaces are one-sided"),
                 ("degenerate", "zero-area and sliver triangles added to the ground",
                  "remove degenerate triangles before the precompute"),
+                ("t-junction", "a T-junction on the ground's diagonal",
+                 "weld the mesh: remove T-junctions before a per-vertex precompute"),
                 ("coincident", "the ground duplicated in place (z-fighting)",
                  "remove coincident surfaces")]
     if profile == "smoke":
-        geometry = geometry[:1] + geometry[2:3]
+        geometry = [g for g in geometry if g[0] in ("grazing", "edge-on", "degenerate")]
     return cases + [Case(f"geometry={name}", "scene", geometry=name, note=note, advice=advice)
                     for name, note, advice in geometry]
 

@@ -74,6 +74,49 @@ def _degenerate(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(positions, np.concatenate([faces, zero, sliver]), normals, uvs)
 
 
+def _t_junction(mesh: TriangleMesh) -> TriangleMesh:
+    """``mesh`` with its first triangle split at the midpoint of its edge (0, 2) only.
+
+    The neighbour across that edge keeps the whole edge, so the new vertex is a T-junction:
+    per-vertex data interpolates differently on the two sides.
+    """
+    f = mesh.faces
+    a, b, c = (int(i) for i in f[0])
+    p = mesh.positions.astype(np.float64)
+    m = len(p)
+    positions = np.concatenate([p, 0.5 * (p[[a]] + p[[c]])])
+    normals = np.concatenate([mesh.normals, mesh.normals[[a]]])
+    uvs = None if mesh.uvs is None else np.concatenate([mesh.uvs, 0.5 * (mesh.uvs[[a]] + mesh.uvs[[c]])])
+    faces = np.concatenate([[[a, b, m], [m, b, c]], f[1:]])
+    return TriangleMesh(positions, faces, normals, uvs)
+
+
+def _single_triangle(mesh: TriangleMesh) -> TriangleMesh:
+    """One triangle covering ``mesh``'s horizontal extent (a ground as a single triangle)."""
+    p = mesh.positions.astype(np.float64)
+    lo, hi = p.min(0), p.max(0)
+    y = float(hi[1])
+    w = hi - lo
+    # Counter-clockwise seen from +Y, and containing the whole [lo, hi] rectangle.
+    positions = np.array([[lo[0] - w[0], y, hi[2] + w[2]], [hi[0] + 2 * w[0], y, hi[2] + w[2]],
+                          [lo[0] - w[0], y, lo[2] - 2 * w[2]]])
+    normals = np.tile(mesh.normals[:1], (3, 1))
+    return TriangleMesh(positions, [[0, 1, 2]], normals)
+
+
+def _edge_on(scene: Scene) -> Trajectory:
+    """A camera exactly in the ground's plane, looking at the scene's centre above it."""
+    lo, hi = scene.bounds()
+    ground_y = float(scene.objects[_ground_index(scene)].mesh.positions[:, 1].max())
+    centre = 0.5 * (lo + hi)
+    view = scene.trajectory.views[0]
+    eye = np.asarray(view.eye, dtype=np.float64)
+    eye[1] = ground_y
+    return Trajectory((View(eye=tuple(float(c) for c in eye),
+                            target=(float(centre[0]), float(centre[1]), float(centre[2])),
+                            fov_y=view.fov_y),))
+
+
 def _grazing(scene: Scene) -> Trajectory:
     lo, hi = scene.bounds()
     ground = scene.objects[_ground_index(scene)].mesh.positions
@@ -123,15 +166,21 @@ def case_scene(base: Scene, case) -> Scene:
             objects[g] = SceneObject(ground.name, _degenerate(ground.mesh), ground.material)
         elif case.geometry == "coincident":
             objects.append(SceneObject("ground-copy", ground.mesh, ground.material))
+        elif case.geometry == "t-junction":
+            objects[g] = SceneObject(ground.name, _t_junction(ground.mesh), ground.material)
+        elif case.geometry == "edge-on":
+            objects[g] = SceneObject(ground.name, _single_triangle(ground.mesh), ground.material)
         elif case.geometry != "grazing":
             raise InvalidInputError(f"stability geometry '{case.geometry}'; accepted: grazing, "
-                                    "flipped-normals, degenerate, coincident")
+                                    "edge-on, flipped-normals, degenerate, t-junction, "
+                                    "coincident")
     exposure = base.exposure * (LIGHTS[case.light].exposure_factor if case.light else 1.0)
     params = {**base.params, "stability_case": case.name}
     scene = dataclasses.replace(base, objects=objects, sdf=sdf, trajectory=trajectory,
                                 exposure=exposure, params=params)
-    if case.geometry == "grazing":
-        scene = dataclasses.replace(scene, trajectory=_grazing(scene))
+    if case.geometry in ("grazing", "edge-on"):
+        views = _grazing(scene) if case.geometry == "grazing" else _edge_on(scene)
+        scene = dataclasses.replace(scene, trajectory=views)
     check_extent(scene, {k: v for k, v in params.items() if k != "stability_case"} | {
         "scale": scale, "translate": case.translate})
     return scene

@@ -102,13 +102,19 @@ class _FakeMethod:
 def test_cases_come_from_the_config_fields_and_their_declared_bounds():
     names = [c.name for c in knob_cases(_FakeMethod, profile="quick")]
     assert names == ["sh_bands=1", "sh_bands=2", "sh_bands=6", "ridge=0", "ridge=1e+06",
-                     "storage=float16"]
+                     "storage=float16", "storage=float16 light=huge-constant"]
     by_name = {c.name: c for c in knob_cases(_FakeMethod, profile="quick")}
     assert by_name["ridge=1e+06"].overrides == {"ridge": 1e6}
-    assert all(c.compare_image and c.advice for c in by_name.values())
+    assert all(c.advice for c in by_name.values())
+    # Half-float storage is also measured under the 10⁶ light (its own picture: no image
+    # comparison with the moderate render).
+    combo = by_name["storage=float16 light=huge-constant"]
+    assert combo.light == "huge-constant" and not combo.compare_image
+    assert by_name["storage=float16"].compare_image and by_name["ridge=0"].compare_image
     # The moderate value itself is not a case; smoke keeps the ends only.
     moderate_3 = [c.name for c in knob_cases(_FakeMethod, profile="smoke")]
-    assert moderate_3 == ["sh_bands=1", "sh_bands=6", "ridge=0", "ridge=1e+06", "storage=float16"]
+    assert moderate_3 == ["sh_bands=1", "sh_bands=6", "ridge=0", "ridge=1e+06", "storage=float16",
+                          "storage=float16 light=huge-constant"]
 
 
 def test_every_registered_method_gets_the_shared_cases():
