@@ -13,12 +13,11 @@ def run_command(args: argparse.Namespace) -> int:
     Every output location, the profile, the methods and the case names are checked before
     any case runs.
     """
-    from .. import outputs, strict_json
+    from .. import outputs
     from ..method import METHODS
     from ..results import default_path
     from .cases import PROFILES
     from .matrix import load_rows, plan, run_matrix
-    from .report import method_summary, write_reports
 
     if args.profile not in PROFILES:
         from ..errors import UnknownNameError
@@ -35,6 +34,10 @@ def run_command(args: argparse.Namespace) -> int:
     outputs.check_folder("--reports", Path(args.reports))
     if args.json:
         outputs.check_file("--json", Path(args.json))
+    if args.from_store:
+        from .matrix import stored_rows
+
+        return _write(stored_rows(profile=args.profile, results_path=results), args, None)
     if args.out:
         outputs.check_folder("--out", Path(args.out))
     outputs.check_results_store("--results", results or default_path())
@@ -44,7 +47,14 @@ def run_command(args: argparse.Namespace) -> int:
     run_id = run_matrix(methods, profile=args.profile, results_path=results,
                         out_dir=Path(args.out) if args.out else None, cases=args.case,
                         timeout_s=args.timeout, echo=not args.quiet)
-    rows = load_rows(run_id, results_path=results)
+    return _write(load_rows(run_id, results_path=results), args, run_id)
+
+
+def _write(rows, args: argparse.Namespace, run_id: str | None) -> int:
+    """Reports (and JSON) of ``rows``; 1 when any row failed."""
+    from .. import strict_json
+    from .report import method_summary, write_reports
+
     for path in write_reports(rows, Path(args.reports)):
         print(f"wrote {path}")
     if args.json:
@@ -79,4 +89,6 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", type=float, default=None,
                    help="seconds per case before it counts as a hang (default: smoke 300, quick 1200)")
     p.add_argument("--quiet", action="store_true", help="no per-case progress lines")
+    p.add_argument("--from-store", action="store_true",
+                   help="rewrite the report from the newest stored run of each method (no measuring)")
     p.set_defaults(func=run_command)

@@ -135,3 +135,37 @@ def load_rows(run_id: str, *, results_path: Path | None) -> list[dict[str, Any]]
     rows = frame.to_dict(orient="records")
     return [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()}
             for r in rows]
+
+
+def stored_rows(*, profile: str, results_path: Path | None) -> list[dict[str, Any]]:
+    """Rows of the newest complete matrix run of each method (and the SH core) for ``profile``.
+
+    Matrix runs over different methods (e.g. run side by side) are merged: a method's rows all
+    come from the newest complete run that measured it.
+
+    Raises
+    ------
+    PrtbenchError
+        No complete stability run for ``profile`` in the store.
+    """
+    from .. import measurements
+
+    if measurements.latest_report("table", TABLE, profile=profile,
+                                  results_path=results_path) is None:
+        from ..errors import PrtbenchError
+
+        path = measurements.store_path(results_path)
+        raise PrtbenchError(f"no complete stability run for profile '{profile}' in results store "
+                            f"'{path}'; measure it first with: prtbench stability --profile "
+                            f"{profile} --results {path}")
+    # Newest first; only complete runs are in report_runs (written after their last row).
+    runs = [r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
+        results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
+        "profile = ? ORDER BY id DESC", [TABLE, profile])]
+    chosen: dict[str, str] = {}
+    by_run = {run: load_rows(run, results_path=results_path) for run in runs}
+    for run in runs:
+        for row in by_run[run]:
+            chosen.setdefault(row["method"], run)
+    order = sorted(chosen, key=lambda m: (m == CORE, m))
+    return [row for m in order for row in by_run[chosen[m]] if row["method"] == m]
