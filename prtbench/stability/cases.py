@@ -152,6 +152,8 @@ class Case:
         ``flipped-normals`` (the non-ground objects' normals negated), ``degenerate``
         (zero-area and sliver triangles added to the ground), ``t-junction`` (a T-junction
         on the ground) or ``coincident`` (the ground duplicated in place).
+    scene : str
+        Another registered scene (its default parameters) instead of the base scene.
     note, advice : str
         What the case probes; what to do instead when it is degraded.
     compare_image : bool
@@ -167,6 +169,7 @@ class Case:
     scale: float = 1.0
     translate: float = 0.0
     geometry: str = ""
+    scene: str = ""
     note: str = ""
     advice: str = ""
     compare_image: bool = False
@@ -304,6 +307,16 @@ def material_cases(*, profile: str) -> list[Case]:
             for s in SHININESS[profile]]
 
 
+def learning_cases(method_cls) -> list[Case]:
+    """Training on all-constant targets: the ``plane`` scene (every point's transfer is the
+    same), for methods that learn from sampled points (a ``samples`` knob)."""
+    if "samples" not in {f.name for f in dataclasses.fields(method_cls.Config)}:
+        return []
+    return [Case("targets=constant", "learning", scene="plane",
+                 note="training on all-constant targets (the unoccluded plane)",
+                 advice="a constant transfer needs no network: use vertex PRT")]
+
+
 MODERATE = Case("moderate", "moderate", note="the method's moderate setting (the comparison)",
                 compare_image=False)
 
@@ -320,6 +333,8 @@ def method_cases(method_cls, *, profile: str) -> list[Case]:
     scene = get_scene(base["scene"], variant=base["variant"], **base["scene_params"])
     cases = [MODERATE, *knob_cases(method_cls, profile=profile), *light_cases(profile=profile),
              *scene_cases(profile=profile, sdf=scene.sdf is not None)]
+    if scene.sdf is None:
+        cases += learning_cases(method_cls)
     if scene.sdf is None and _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
         cases += material_cases(profile=profile)
     return cases

@@ -102,7 +102,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                     moderate, moderate_exr = measured, measured.get("image_exr")
                 row = {"method": method, "case": case.name, "group": case.group,
                        "note": case.note, "advice": case.advice,
-                       "overrides": dict(case.overrides), "scene": base["scene"],
+                       "overrides": dict(case.overrides), "scene": case.scene or base["scene"],
                        "variant": "glossy" if case.shininess is not None else base["variant"],
                        "outcome": outcome, "reason": reason,
                        "moderate_psnr_masked": (moderate or {}).get("psnr_masked"),

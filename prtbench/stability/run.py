@@ -87,10 +87,11 @@ def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
 
     light = LIGHTS[case.light].build() if case.light else base["light"]
     variant = "glossy" if case.shininess is not None else base["variant"]
-    return RunRequest(method=method, scene=base["scene"], variant=variant, light=light,
-                      views=1, profile=profile,
+    params = {} if case.scene else dict(base.get("scene_params", {}))
+    return RunRequest(method=method, scene=case.scene or base["scene"], variant=variant,
+                      light=light, views=1, profile=profile,
                       overrides={**base.get("overrides", {}), **case.overrides},
-                      scene_params=dict(base.get("scene_params", {})), out_dir=out_dir,
+                      scene_params=params, out_dir=out_dir,
                       results_path=results_path, store_results=True, write_images=True)
 
 
