@@ -37,7 +37,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.from_store:
         from .matrix import stored_rows
 
-        return _write(stored_rows(profile=args.profile, results_path=results), args, None)
+        return _write(stored_rows(profile=args.profile, results_path=results,
+                                  partial=args.partial), args, None)
     if args.out:
         outputs.check_folder("--out", Path(args.out))
     outputs.check_results_store("--results", results or default_path())
@@ -91,4 +92,6 @@ def add_parser(sub) -> None:
     p.add_argument("--quiet", action="store_true", help="no per-case progress lines")
     p.add_argument("--from-store", action="store_true",
                    help="rewrite the report from the newest stored run of each method (no measuring)")
+    p.add_argument("--partial", action="store_true",
+                   help="with --from-store: runs interrupted before their end count too (marked)")
     p.set_defaults(func=run_command)

@@ -137,35 +137,41 @@ def load_rows(run_id: str, *, results_path: Path | None) -> list[dict[str, Any]]
             for r in rows]
 
 
-def stored_rows(*, profile: str, results_path: Path | None) -> list[dict[str, Any]]:
-    """Rows of the newest complete matrix run of each method (and the SH core) for ``profile``.
+def stored_rows(*, profile: str, results_path: Path | None,
+                partial: bool = False) -> list[dict[str, Any]]:
+    """Rows of the newest matrix run of each method (and the SH core) for ``profile``.
 
     Matrix runs over different methods (e.g. run side by side) are merged: a method's rows all
-    come from the newest complete run that measured it.
+    come from the newest run that measured it. Only complete runs count unless ``partial``:
+    then an interrupted run (rows stored, no report run) counts too, and each of its rows is
+    marked ``partial_run = True``.
 
     Raises
     ------
     PrtbenchError
-        No complete stability run for ``profile`` in the store.
+        No (complete, unless ``partial``) stability run for ``profile`` in the store.
     """
     from .. import measurements
+    from ..errors import PrtbenchError
 
-    if measurements.latest_report("table", TABLE, profile=profile,
-                                  results_path=results_path) is None:
-        from ..errors import PrtbenchError
-
-        path = measurements.store_path(results_path)
-        raise PrtbenchError(f"no complete stability run for profile '{profile}' in results store "
-                            f"'{path}'; measure it first with: prtbench stability --profile "
-                            f"{profile} --results {path}")
-    # Newest first; only complete runs are in report_runs (written after their last row).
-    runs = [r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
+    complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
         results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
-        "profile = ? ORDER BY id DESC", [TABLE, profile])]
+        "profile = ?", [TABLE, profile])}
+    # Every run with rows, newest first (by its last row).
+    runs = [r[0] for r in measurements._read(  # noqa: SLF001
+        results_path, "SELECT run_id FROM measurements WHERE name = ? AND profile = ? "
+        "GROUP BY run_id ORDER BY MAX(id) DESC", [TABLE, profile])]
+    runs = [r for r in runs if partial or r in complete]
+    if not runs:
+        path = measurements.store_path(results_path)
+        raise PrtbenchError(f"no {'' if partial else 'complete '}stability run for profile "
+                            f"'{profile}' in results store '{path}'; measure it first with: "
+                            f"prtbench stability --profile {profile} --results {path}")
     chosen: dict[str, str] = {}
     by_run = {run: load_rows(run, results_path=results_path) for run in runs}
     for run in runs:
         for row in by_run[run]:
             chosen.setdefault(row["method"], run)
     order = sorted(chosen, key=lambda m: (m == CORE, m))
-    return [row for m in order for row in by_run[chosen[m]] if row["method"] == m]
+    return [{**row, "partial_run": chosen[m] not in complete}
+            for m in order for row in by_run[chosen[m]] if row["method"] == m]

@@ -86,6 +86,11 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "`over`/`under`: values above that maximum / non-zero below its smallest normal.",
              "", "## Summary", ""]
     lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
+    partial = [m for m in methods if any(r.get("partial_run") for r in rows if r["method"] == m)]
+    if partial:
+        lines += ["", "Partial (the run was stopped before its end; the cases listed are all that "
+                  "was measured): " + ", ".join(
+                      f"{m} ({sum(r['method'] == m for r in rows)} cases)" for m in partial)]
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
         if mine[0].get("group") == "sh-core":

@@ -249,3 +249,32 @@ def test_command_errors_are_one_line_exit_2_before_any_work(tmp_path, capsys, ar
     assert status == 2 and err.startswith("prtbench: error: ") and "\n" not in err
     assert fragment in err
     assert not results.exists() and not reports.exists()
+
+
+def test_from_store_merges_the_newest_run_of_each_method_and_marks_partial_ones(tmp_path):
+    from prtbench import measurements
+    from prtbench.errors import PrtbenchError
+    from prtbench.stability.matrix import TABLE, stored_rows
+
+    store = tmp_path / "r.sqlite"
+
+    def run(rows, *, complete):
+        run_id = measurements.new_run_id()
+        measurements.record(TABLE, rows, results_path=store, run_id=run_id, profile="smoke",
+                            git_sha="abc")
+        if complete:
+            measurements.complete_report("table", TABLE, profile="smoke", run_id=run_id,
+                                         members={}, results_path=store, git_sha="abc")
+
+    with pytest.raises(PrtbenchError, match="no complete stability run for profile 'smoke'"):
+        stored_rows(profile="smoke", results_path=store)
+    run([{"method": "a", "case": "moderate", "outcome": "ok"},
+         {"method": "b", "case": "moderate", "outcome": "failed"}], complete=True)
+    run([{"method": "b", "case": "moderate", "outcome": "ok"}], complete=True)   # newer b
+    run([{"method": "a", "case": "moderate", "outcome": "degraded"}], complete=False)
+    rows = stored_rows(profile="smoke", results_path=store)
+    assert [(r["method"], r["outcome"], r["partial_run"]) for r in rows] == [
+        ("a", "ok", False), ("b", "ok", False)]
+    rows = stored_rows(profile="smoke", results_path=store, partial=True)
+    assert [(r["method"], r["outcome"], r["partial_run"]) for r in rows] == [
+        ("a", "degraded", True), ("b", "ok", False)]
