@@ -84,7 +84,9 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "render, where the case renders the same picture (knobs, scale, translation). "
              "`peak/max`: the artifact's largest |value| over its storage type's maximum; "
              "`over`/`under`: values above that maximum / non-zero below its smallest normal.",
-             "", "## Summary", ""]
+             "", "Not in the catalogue yet: a 10⁶-triangle mesh for the per-vertex methods, SDF "
+             "sphere tracing with |∇d| ≪ 1, wavelet k = 1 / all (no wavelet method is "
+             "registered).", "", "## Summary", ""]
     lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
     partial = [m for m in methods if any(r.get("partial_run") for r in rows if r["method"] == m)]
     if partial:
