@@ -72,6 +72,8 @@ def classify(measured: Mapping[str, Any], moderate: Mapping[str, Any] | None) ->
     if moderate is None:
         return "ok", "the moderate setting"
     m_psnr, m_flip = _number(moderate.get("psnr_masked")), _number(moderate.get("flip_masked"))
+    if not (math.isfinite(m_psnr) or math.isfinite(m_flip)):
+        return "ok", "finite and measured; the moderate case has no measurement to compare with"
     lost = m_psnr - psnr if math.isfinite(m_psnr) else 0.0
     gained = flip - m_flip if math.isfinite(m_flip) else 0.0
     if lost > PSNR_MARGIN_DB or gained > FLIP_MARGIN:

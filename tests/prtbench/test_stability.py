@@ -64,6 +64,9 @@ def test_black_light_cases_and_unmeasured_metrics():
     black = {**GOOD, "reference_black": True, "image_black": True, "psnr_masked": None}
     assert classify(black, MODERATE)[0] == "ok"
     assert classify({**black, "image_black": False}, MODERATE)[0] == "degraded"
+    # Without a moderate measurement nothing is called degraded, and the reason says so.
+    outcome, reason = classify({**GOOD, "psnr_masked": 5.0}, {})
+    assert outcome == "ok" and "no measurement to compare" in reason
     # Finite images whose masked metrics are NaN measured nothing: a bug of the case.
     assert classify({**GOOD, "psnr_masked": None}, MODERATE)[0] == "failed"
 
