@@ -91,7 +91,7 @@ def add_parser(sub) -> None:
                    help="seconds per case before it counts as a hang (default: smoke 300, quick 1200)")
     p.add_argument("--quiet", action="store_true", help="no per-case progress lines")
     p.add_argument("--from-store", action="store_true",
-                   help="rewrite the report from the newest stored run of each method (no measuring)")
+                   help="rewrite the report from the newest stored row of each case (no measuring)")
     p.add_argument("--partial", action="store_true",
                    help="with --from-store: runs interrupted before their end count too (marked)")
     p.set_defaults(func=run_command)

@@ -139,12 +139,12 @@ def load_rows(run_id: str, *, results_path: Path | None) -> list[dict[str, Any]]
 
 def stored_rows(*, profile: str, results_path: Path | None,
                 partial: bool = False) -> list[dict[str, Any]]:
-    """Rows of the newest matrix run of each method (and the SH core) for ``profile``.
+    """The newest stored row of each (method, case) for ``profile`` (SH core rows last).
 
-    Matrix runs over different methods (e.g. run side by side) are merged: a method's rows all
-    come from the newest run that measured it. Only complete runs count unless ``partial``:
-    then an interrupted run (rows stored, no report run) counts too, and each of its rows is
-    marked ``partial_run = True``.
+    Matrix runs over different methods or cases (e.g. run side by side) are merged; each row
+    keeps the run it came from (its moderate case is that run's). Only complete runs count
+    unless ``partial``: then an interrupted run (rows stored, no report run) counts too, and
+    its rows are marked ``partial_run = True``.
 
     Raises
     ------
@@ -167,11 +167,10 @@ def stored_rows(*, profile: str, results_path: Path | None,
         raise PrtbenchError(f"no {'' if partial else 'complete '}stability run for profile "
                             f"'{profile}' in results store '{path}'; measure it first with: "
                             f"prtbench stability --profile {profile} --results {path}")
-    chosen: dict[str, str] = {}
-    by_run = {run: load_rows(run, results_path=results_path) for run in runs}
-    for run in runs:
-        for row in by_run[run]:
-            chosen.setdefault(row["method"], run)
-    order = sorted(chosen, key=lambda m: (m == CORE, m))
-    return [{**row, "partial_run": chosen[m] not in complete}
-            for m in order for row in by_run[chosen[m]] if row["method"] == m]
+    chosen: dict[tuple[str, str], dict[str, Any]] = {}
+    for run in runs:  # newest first: the first row of a (method, case) wins
+        for row in load_rows(run, results_path=results_path):
+            chosen.setdefault((row["method"], row["case"]),
+                              {**row, "partial_run": run not in complete})
+    methods = sorted({m for m, _ in chosen}, key=lambda m: (m == CORE, m))
+    return [row for m in methods for (method, _), row in chosen.items() if method == m]

@@ -254,7 +254,7 @@ def test_command_errors_are_one_line_exit_2_before_any_work(tmp_path, capsys, ar
     assert not results.exists() and not reports.exists()
 
 
-def test_from_store_merges_the_newest_run_of_each_method_and_marks_partial_ones(tmp_path):
+def test_from_store_merges_the_newest_row_of_each_case_and_marks_partial_runs(tmp_path):
     from prtbench import measurements
     from prtbench.errors import PrtbenchError
     from prtbench.stability.matrix import TABLE, stored_rows
@@ -274,10 +274,12 @@ def test_from_store_merges_the_newest_run_of_each_method_and_marks_partial_ones(
     run([{"method": "a", "case": "moderate", "outcome": "ok"},
          {"method": "b", "case": "moderate", "outcome": "failed"}], complete=True)
     run([{"method": "b", "case": "moderate", "outcome": "ok"}], complete=True)   # newer b
-    run([{"method": "a", "case": "moderate", "outcome": "degraded"}], complete=False)
+    run([{"method": "a", "case": "moderate", "outcome": "degraded"},
+         {"method": "a", "case": "light=black", "outcome": "ok"}], complete=False)
     rows = stored_rows(profile="smoke", results_path=store)
-    assert [(r["method"], r["outcome"], r["partial_run"]) for r in rows] == [
-        ("a", "ok", False), ("b", "ok", False)]
+    assert [(r["method"], r["case"], r["outcome"], r["partial_run"]) for r in rows] == [
+        ("a", "moderate", "ok", False), ("b", "moderate", "ok", False)]
     rows = stored_rows(profile="smoke", results_path=store, partial=True)
-    assert [(r["method"], r["outcome"], r["partial_run"]) for r in rows] == [
-        ("a", "degraded", True), ("b", "ok", False)]
+    assert [(r["method"], r["case"], r["outcome"], r["partial_run"]) for r in rows] == [
+        ("a", "moderate", "degraded", True), ("a", "light=black", "ok", True),
+        ("b", "moderate", "ok", False)]
