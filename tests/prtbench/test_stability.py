@@ -206,6 +206,20 @@ def test_geometry_cases_change_only_what_they_say():
     grazing = case_scene(base, Case("geometry=grazing", "scene", geometry="grazing"))
     eye = grazing.trajectory.views[0].eye
     assert 0.0 < eye[1] <= 2e-3 * base.diagonal()
+    edge = case_scene(base, Case("geometry=edge-on", "scene", geometry="edge-on"))
+    one = edge.objects[0].mesh
+    assert one.n_triangles == 1 and edge.trajectory.views[0].eye[1] == 0.0  # in its plane
+    lo, hi = base.objects[0].mesh.positions.min(0), base.objects[0].mesh.positions.max(0)
+    assert np.all(one.positions.min(0)[[0, 2]] < lo[[0, 2]])  # still covers the old ground
+    assert np.all(one.positions.max(0)[[0, 2]] > hi[[0, 2]])
+    assert np.cross(*(one.positions[1:] - one.positions[0]))[1] > 0  # faces +Y
+    t = case_scene(base, Case("geometry=t-junction", "scene", geometry="t-junction"))
+    tj = t.objects[0].mesh
+    assert tj.n_triangles == base.objects[0].mesh.n_triangles + 1
+    assert tj.triangle_areas().sum() == pytest.approx(base.objects[0].mesh.triangle_areas().sum())
+    # The new vertex lies on an edge of a triangle that does not use it: a T-junction.
+    m = tj.n_vertices - 1
+    assert sum(m in face for face in tj.faces) == 2
 
 
 # --- the process runner ------------------------------------------------------------------------
