@@ -173,4 +173,22 @@ def stored_rows(*, profile: str, results_path: Path | None,
             chosen.setdefault((row["method"], row["case"]),
                               {**row, "partial_run": run not in complete})
     methods = sorted({m for m, _ in chosen}, key=lambda m: (m == CORE, m))
-    return [row for m in methods for (method, _), row in chosen.items() if method == m]
+    out = []
+    for m in methods:
+        mine = [row for (method, _), row in chosen.items() if method == m]
+        out += sorted(mine, key=_catalogue_order(m, profile)) if m != CORE else mine
+    return out
+
+
+def _catalogue_order(method: str, profile: str):
+    """Sort key of a method's rows: moderate first, then the catalogue's order (cases it no
+    longer has last, by name)."""
+    from ..method import METHODS
+
+    try:
+        names = [c.name for c in method_cases(METHODS.get(method), profile=profile)]
+    except Exception:  # noqa: BLE001 - a method no longer registered keeps its rows by name
+        names = []
+    index = {name: i for i, name in enumerate(names)}
+    return lambda row: (row["case"] != "moderate", index.get(row["case"], len(index)),
+                        row["case"])

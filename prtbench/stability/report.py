@@ -72,9 +72,13 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     first = rows[0] if rows else {}
     totals = Counter(r["outcome"] for r in rows)
+    revisions = list(dict.fromkeys(str(r.get("git_sha", "?")) for r in rows))
+    shas = (f"`{revisions[0]}`" if len(revisions) == 1 else
+            f"at {len(revisions)} revisions (newest row `{revisions[-1]}`)")
+    devices = ", ".join(dict.fromkeys(str(r.get("device", "?")) for r in rows))
     lines = ["# Numerical stability at the extremes (issue #15)", "",
-             f"Profile `{first.get('profile', '?')}`, code `{first.get('git_sha', '?')}`, "
-             f"device {first.get('device', '?')}. One view per case, path reference (Mitsuba). "
+             f"Profile `{first.get('profile', '?')}`, code {shas} (per row in the CSV), "
+             f"device {devices}. One view per case, path reference (Mitsuba). "
              f"Outcomes: {', '.join(f'{totals.get(o, 0)} {o}' for o in OUTCOMES)}.", "",
              f"`degraded`: finite, but masked PSNR more than {PSNR_MARGIN_DB:g} dB below, or "
              f"masked FLIP more than {FLIP_MARGIN:g} above, the method's `moderate` case (its "
@@ -82,7 +86,7 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "(the correct answer to an impossible request). `failed`: NaN/Inf, a crash, a "
              "traceback or a timeout (always a bug). `vs mod.`: the image against the moderate "
              "render, where the case renders the same picture (knobs, scale, translation). "
-             "`peak/max`: the artifact's largest |value| over its storage type's maximum; "
+             "`peak / max`: the artifact's largest |value| and its storage type's maximum; "
              "`over`/`under`: values above that maximum / non-zero below its smallest normal.",
              "", "Not in the catalogue yet: a 10⁶-triangle mesh for the per-vertex methods, SDF "
              "sphere tracing with |∇d| ≪ 1, wavelet k = 1 / all (no wavelet method is "
@@ -105,16 +109,17 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
             continue
         lines += ["", f"## {method}", "",
                   f"Base scene `{mine[0].get('scene')}`.", "",
-                  "| case | outcome | PSNR_m | FLIP_m | vs mod. PSNR | peak/max | over | under "
+                  "| case | outcome | PSNR_m | FLIP_m | vs mod. PSNR | peak / max (dtype) | over | under "
                   "| precompute s | memory KiB | peak RSS MiB | reason |",
                   "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
         for r in mine:
-            ratio = (None if r.get("artifact_peak") is None or not r.get("storage_max")
-                     else float(r["artifact_peak"]) / float(r["storage_max"]))
+            peak = ("-" if r.get("artifact_peak") is None else
+                    f"{_num(r.get('artifact_peak'), '.3g')} / {_num(r.get('storage_max'), '.3g')} "
+                    f"({r.get('storage_dtype')})")
             lines.append(
                 f"| {r['case']} | **{r['outcome']}** | {_num(r.get('psnr_masked'))} | "
                 f"{_num(r.get('flip_masked'), '.3f')} | {_num(r.get('psnr_vs_moderate'))} | "
-                f"{_num(ratio, '.1e')} ({r.get('storage_dtype') or '-'}) | "
+                f"{peak} | "
                 f"{_num(r.get('overflow'), 'd')} | {_num(r.get('underflow'), 'd')} | "
                 f"{_num(r.get('precompute_s'), '.1f')} | {_kib(r.get('memory_bytes'))} | "
                 f"{_mib(r.get('peak_rss_bytes'))} | {_short(r.get('reason'))} |")
