@@ -79,6 +79,13 @@ table-%: setup
 figure-%: setup
 	$(PRTBENCH) figure $* --profile $(PROFILE)
 
+# Numerical stability at the extremes (issue #15): every method at the edges of its knobs,
+# lights and scenes, ok/degraded/refused/failed; reports/table-stability.{md,csv}. Explicit,
+# so the table-% rule (paper tables) does not take it.
+.PHONY: table-stability
+table-stability: setup
+	$(PRTBENCH) stability --profile $(PROFILE)
+
 tables: $(addprefix table-,$(TABLES))
 figures: $(addprefix figure-,$(FIGURES))
 

@@ -374,9 +374,12 @@ class GlslSdfRenderer(Renderer):
             self.ctx, scene, "learnt_sdf.frag", defines=defines, max_steps=config.max_steps,
             sources={"learnt_weights.glsl": glsl.weights_source([network], spec)},
             search_path=[SHADER_DIR])
-        self.program["material_kd"].write(kd.tobytes())
-        self.program["material_ks"].write(ks.tobytes())
-        self.program["material_shininess"].write(shininess.tobytes())
+        for name, values in (("material_kd", kd), ("material_ks", ks),
+                             ("material_shininess", shininess)):
+            # Compiled out when unused: at sh_bands=1 the Phong lobe's only coefficient g_0
+            # does not depend on s (issue #15 stability case sh_bands=1 raised KeyError).
+            if name in self.program:
+                self.program[name].write(values.tobytes())
         self.vao = fullscreen_vao(self.ctx, self.program)
         self.target = gl.RenderTarget(self.ctx, width, height)
         self.triple = _triple.TripleProductBuffers(self.ctx, spec.bands,

@@ -1,7 +1,7 @@
 """The ``prtbench`` command.
 
 Subcommands: ``list``, ``assets``, ``run``, ``reference``, ``results``, ``table``, ``pareto``,
-``regress``, ``scene info``.
+``regress``, ``scene info``, ``stability``.
 User mistakes print one line (``prtbench: error: …``) and exit with status 2. Heavy modules
 (torch, moderngl, embreex, mitsuba) are imported only by the subcommands that need them, so
 ``prtbench list`` is instant.
@@ -511,6 +511,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no per-cell progress lines")
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
     p.set_defaults(func=_advise)
+
+    from .stability.command import add_parser as add_stability_parser
+
+    add_stability_parser(sub)
 
     p = sub.add_parser("scene", help="inspect an asset file (or a built-in scene) as a prtbench scene")
     scene_sub = p.add_subparsers(dest="scene_command", required=True)

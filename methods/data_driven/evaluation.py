@@ -129,6 +129,7 @@ def write_coefficients(renderer: Any, weights: np.ndarray) -> None:
     data = padded.T.reshape(t.rows, t.groups, 4) if not t.multi else \
         padded[:, 0].reshape(1, t.groups, 4)
     t.output.write(np.ascontiguousarray(data, np.float32).tobytes())
+    renderer.coefficient_scale = 1.0  # these weights are of the light itself, not rescaled
 
 
 @dataclass

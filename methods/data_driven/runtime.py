@@ -113,7 +113,7 @@ class Transfer:
         self.vao = ctx.vertex_array(self.program, [])
         self.matrix_bytes = int(np.asarray(matrix).size * 4)
 
-    def run(self, direct_vector) -> None:
+    def run(self, direct_vector, *, light_scale: float = 1.0) -> None:
         self.fbo.use()
         self.ctx.viewport = (0, 0, self.groups, self.rows)
         self.ctx.disable(gl.moderngl.DEPTH_TEST)
@@ -125,6 +125,8 @@ class Transfer:
         self.program["n_basis"].value = self.n_basis
         if "channel_stride" in self.program:  # compiled out when only the mean is blended
             self.program["channel_stride"].value = self.channel_stride
+        if "light_scale" in self.program:  # gamma space only (see DirectLighting.light_scale)
+            self.program["light_scale"].value = float(light_scale)
         self.vao.render(gl.moderngl.TRIANGLES, vertices=3)
 
     def read(self) -> np.ndarray:
@@ -181,6 +183,9 @@ class DataDrivenRenderer(Renderer):
         self._mesh = (positions, arrays["mesh_normals"], arrays["mesh_albedo"], arrays["mesh_uvs"],
                       faces)
         self._programs: dict[tuple[bool, bool], Any] = {}
+        #: The light scale the coefficient texture holds its weights relative to (gamma space;
+        #: see pass_transfer). Weights written directly (evaluation.write_coefficients) are 1.
+        self.coefficient_scale = 1.0
         self.depth_program = gl.load_program(self.ctx, "data_driven_shade.vert", "data_driven_depth.frag",
                                              search_path=[SHADER_DIR])
         self.depth_vao = gl.upload_mesh(self.ctx, self.depth_program, positions, faces)
@@ -218,7 +223,12 @@ class DataDrivenRenderer(Renderer):
         self.gbuffer.run(self.lighting)
 
     def pass_transfer(self) -> None:
-        self.transfer.run(self.gbuffer.output)
+        # Gamma space divides the direct light by the lights' peak power before v^(1/γ) (float32
+        # stays finite for any light) and the shading multiplies it back: coefficient_scale is
+        # the light the coefficient texture is relative to.
+        scale = self.lighting.tiles.light_scale if self.gamma != 1.0 else 1.0
+        self.transfer.run(self.gbuffer.output, light_scale=scale)
+        self.coefficient_scale = scale
 
     def pass_shading(self, view: View, *, direct: bool = True, indirect: bool = True) -> None:
         near, far = _clip_planes(self.lo, self.hi, view)
@@ -242,6 +252,8 @@ class DataDrivenRenderer(Renderer):
             self.transfer.output.use(2)
             program["basis"].value = 1
             program["coefficients"].value = 2
+            if "light_scale" in program:  # gamma space only
+                program["light_scale"].value = float(self.coefficient_scale)
         self.target.fbo.depth_mask = False
         vao.render()
         self.target.fbo.depth_mask = True
@@ -272,10 +284,14 @@ class DataDrivenRenderer(Renderer):
         return self.gbuffer.read()
 
     def coefficients(self, light: Any) -> np.ndarray:
-        """The transfer pass's output for ``light`` (see :meth:`Transfer.read`)."""
+        """The transfer pass's output for ``light`` (see :meth:`Transfer.read`), relative to
+        the light itself (gamma space: the texture's weights times coefficient_scale^(1/γ))."""
         self.direct_vector(light)
         self.pass_transfer()
-        return self.transfer.read()
+        raw = self.transfer.read()
+        if self.gamma == 1.0:
+            return raw
+        return raw.astype(np.float64) * self.coefficient_scale ** (1.0 / self.gamma)
 
     def frame_time(self, view: View, light: Any, *, warmup: int, frames: int) -> FrameTimes:
         times = self.timer.time_frames(lambda: self.draw(view, light), warmup=warmup, frames=frames)

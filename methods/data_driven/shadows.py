@@ -127,6 +127,17 @@ class ShadowTiles:
     def n_tiles(self) -> int:
         return len(self.matrices)
 
+    @property
+    def light_scale(self) -> float:
+        """The largest power component of the lights (1 when all are black).
+
+        The gamma-space transfer divides the direct light by it before v^(1/γ) and multiplies
+        the decoded indirect light by it: the transfer is homogeneous of degree 1 in the light,
+        so this changes nothing but keeps float32 finite (a 10⁶ light at γ = 0.1 is 10⁶⁰).
+        """
+        peak = float(np.max(np.abs(self.light_arrays[2, :self.n_lights, :3]), initial=0.0))
+        return peak if peak > 0.0 and math.isfinite(peak) else 1.0
+
     def offset(self, t: int) -> tuple[int, int]:
         return (t % self.grid) * self.resolution, (t // self.grid) * self.resolution
 

@@ -8,6 +8,9 @@
 #if INDIRECT
 uniform sampler2DArray basis;
 uniform sampler2D coefficients;
+#if GAMMA_SPACE
+uniform float light_scale;  // the transfer pass divided the direct light by it
+#endif
 #endif
 
 in vec3 world;
@@ -33,7 +36,7 @@ vec3 indirect_radiance() {
     }
 #endif
 #if GAMMA_SPACE
-    sum = pow(max(sum, vec3(0.0)), vec3(GAMMA));
+    sum = light_scale * pow(max(sum, vec3(0.0)), vec3(GAMMA));
 #endif
 #endif
     return sum;

@@ -14,9 +14,15 @@ uniform int channel_stride;        // rows between channels' matrices: n - 1, or
 #endif
 out vec4 coefficients;
 
+#if GAMMA_SPACE
+// The lights' largest power: v / light_scale before the power keeps float32 finite for any
+// light (the coefficients are homogeneous in x; the shading multiplies light_scale back).
+uniform float light_scale;
+#endif
+
 float to_transfer_space(float v) {
 #if GAMMA_SPACE
-    return pow(max(v, 0.0), 1.0 / GAMMA);
+    return pow(max(v / light_scale, 0.0), 1.0 / GAMMA);
 #else
     return v;
 #endif

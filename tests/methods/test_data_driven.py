@@ -392,6 +392,33 @@ def test_gl_interleaved_and_gamma_paths_match_numpy(spot_artifact, channels, gam
     assert close.mean() > (0.95 if gamma == 1.0 else 0.85), close.mean()
 
 
+def test_gamma_space_is_finite_and_linear_for_a_light_a_million_times_brighter(spot_artifact):
+    # Issue #15 (stability): at gamma 0.1 the transfer pass raised the direct light to the
+    # 10th power in float32, so a 10⁶ light (10⁶⁰) overflowed and the image had NaN pixels.
+    # The light's peak power is now factored out (the transfer is homogeneous of degree 1).
+    import dataclasses
+
+    scene, cls, base, _ = spot_artifact
+    config = dataclasses.replace(base, gamma=0.1)
+    artifact = load_or_precompute(cls, scene, config, progress=False)
+    from methods.data_driven.dataset import build_dataset
+
+    light = build_dataset(scene, config).lights[1]
+    bright = dataclasses.replace(light, intensity=tuple(1e6 * c for c in light.intensity))
+    renderer = cls.renderer(scene, artifact, config, width=64, height=48)
+    try:
+        view = scene.trajectory.views[0]
+        unit = renderer.render(view, light, direct=False)
+        huge = renderer.render(view, bright, direct=False)
+        w_unit, w_huge = renderer.coefficients(light), renderer.coefficients(bright)
+    finally:
+        renderer.release()
+    assert np.isfinite(huge).all() and unit.max() > 0
+    assert np.allclose(huge / 1e6, unit, rtol=1e-3, atol=1e-4 * unit.max())
+    # coefficients() stays relative to the light itself: 10⁶ˣ brighter scales them by 10⁶⁰.
+    assert np.allclose(w_huge, w_unit * 1e60, rtol=1e-3, atol=1e-4 * np.abs(w_unit).max() * 1e60)
+
+
 def test_all_dark_light_renders_finite_black_indirect(spot_artifact):
     scene, cls, config, artifact = spot_artifact
     renderer = cls.renderer(scene, artifact, config, width=32, height=24)

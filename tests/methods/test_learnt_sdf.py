@@ -96,6 +96,22 @@ def test_furnace_white_light_convex_sdf_is_albedo():
     assert covered.sum() == pytest.approx(expected, rel=0.05)
 
 
+def test_one_band_renders_glossy_materials_diffusely():
+    # Issue #15 (stability, sh_bands=1): with one band the Phong lobe's only coefficient g_0 is
+    # independent of s, the shader compiles material_shininess out, and writing it raised
+    # KeyError. With one band the convex sphere's H is its constant H_0 under the white light, and
+    # the specular term reduces to its band-0 constant: one colour, brighter than kd alone.
+    scene = _sdf_scene(ground=False, kd=0.5, glossy=True)
+    cls, config, artifact = _artifact(scene, sh_bands=1, hidden=8, layers=1, pe_frequencies=0,
+                                      epochs=2, samples=1000)
+    image, _ = _render(cls, scene, artifact, config, "white")
+    covered = image.max(axis=-1) > 0
+    assert np.isfinite(image).all() and covered.sum() > 100
+    values = image[covered]
+    assert np.ptp(values, axis=0).max() < 1e-3 * values.max()  # constant over the sphere
+    assert values.mean() > 0.5  # kd = 0.5 plus the specular band-0 term
+
+
 @pytest.fixture
 def glossy_ground():
     # Function-scoped so that it runs inside the per-test cache isolation of conftest.py; the

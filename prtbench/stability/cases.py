@@ -1,0 +1,358 @@
+"""The stability case catalogue (issue #15): extreme settings, as data, per registered method.
+
+A method's cases are generated from its own ``Config`` fields, so a method added later gets
+them without being named here: every knob whose *name* has a rule in :data:`KNOB_RULES`
+contributes a case at each of the rule's extremes (``"low"`` / ``"high"`` are the knob's
+declared bounds, read from its metadata; numbers are used as they are), minus the value the
+method's moderate setting already has. Then come the cases that apply to every method: the
+extreme lights of :mod:`prtbench.stability.lights`, the scene transforms (scale 10⁻⁴ and 10⁴,
+a translation by 10⁵, a grazing view, flipped normals, degenerate triangles, coincident
+surfaces) and, for methods that accept glossy materials, the Phong exponents.
+
+Every case is measured against the method's *moderate* case: the profile's defaults plus the
+method's regression-case overrides (:func:`prtbench.regress.regression_case`), on the base
+scene (``sphere-over-plane`` unless the method refuses it, then its regression scene) under
+``sky``, one view.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import PrtbenchError
+
+#: Profiles the stability matrix runs in (``smoke`` is a subset: fewer values per rule).
+PROFILES = ("smoke", "quick")
+#: The scene every mesh method is measured on, and its light.
+BASE_SCENE = {"scene": "sphere-over-plane", "variant": "diffuse", "light": "sky",
+              "scene_params": {"sphere_segments": 32, "plane_size": 4.0}}
+#: Phong exponents of the material cases (quick; smoke keeps the ends). 10⁵ is past the
+#: material's accepted range [0, 10⁴]: its correct answer is a refusal naming that range.
+SHININESS = {"smoke": (0.0, 1.0e4, 1.0e5), "quick": (0.0, 1.0, 1.0e3, 1.0e4, 1.0e5)}
+
+
+@dataclass(frozen=True)
+class KnobRule:
+    """Extremes of one knob name.
+
+    Attributes
+    ----------
+    values : dict of str to tuple
+        Per profile: ``"low"``, ``"high"`` (the knob's declared bounds) or literal values.
+    note : str
+        What the extreme probes.
+    advice : str
+        What a user should do instead when the case is degraded.
+    group : str
+        Report group (``knob``, ``storage``, ``learning``, ``sampling``).
+    """
+
+    values: Mapping[str, tuple[Any, ...]]
+    note: str
+    advice: str
+    group: str = "knob"
+    #: Extreme lights each value is also measured under (a knob whose arithmetic scales with
+    #: the light: half-float storage, gamma-space transfer).
+    lights: tuple[str, ...] = ()
+
+
+def _both(*values: Any) -> dict[str, tuple[Any, ...]]:
+    return {"smoke": tuple(values), "quick": tuple(values)}
+
+
+#: Knob name -> its extremes. A knob a method lacks contributes nothing.
+KNOB_RULES: dict[str, KnobRule] = {
+    "sh_bands": KnobRule({"smoke": ("low", "high"), "quick": ("low", 2, "high")},
+                         "SH band count at the ends of the method's range",
+                         "use 3-5 bands (the moderate setting): 1-2 bands lose the shadow"),
+    "storage": KnobRule(_both("float16"), "half-float transfer textures (overflow/underflow)",
+                        "store float32 where coefficients exceed 65504 or matter below 6e-5",
+                        "storage", lights=("huge-constant",)),
+    "precision": KnobRule(_both("float16"), "half-float probe radiance (overflow/underflow)",
+                          "store float32 where radiance exceeds 65504 or matters below 6e-5",
+                          "storage", lights=("huge-constant",)),
+    "texture_resolution": KnobRule({"smoke": ("low", "high"), "quick": ("low", 2048, "high")},
+                                   "transfer texture at the smallest, a large and the largest "
+                                   "resolution (refused past this machine's memory)",
+                                   "use >= 128 texels per side for the scene's shadow detail",
+                                   "storage"),
+    "dilation": KnobRule(_both(0), "no dilation: bilinear lookups read empty texels at seams",
+                         "keep dilation >= 1 with bilinear filtering", "storage"),
+    "resolution": KnobRule({"smoke": ("low",), "quick": ("low", "high")},
+                           "probe grid at its coarsest (and finest) resolution",
+                           "use >= 8 probes per axis", "storage"),
+    "normal_bias": KnobRule(_both("low", "high"), "probe lookup bias at 0 and 4 cells",
+                            "keep normal_bias near 0.5 cells"),
+    "invalid_backface_fraction": KnobRule(_both("low"),
+                                          "every probe that sees a back face is invalid",
+                                          "keep invalid_backface_fraction near 0.25"),
+    "bounces": KnobRule(_both("high"), "the most interreflection bounces the knob accepts",
+                        "use 1-2 bounces: later ones add little light for much more precompute"),
+    "ridge": KnobRule(_both("low", "high"), "transfer-matrix ridge of 0 and 1e6",
+                      "use a ridge of 1e-3..1: 1e6 shrinks the transfer towards 0", "learning"),
+    "basis": KnobRule({"smoke": ("low", "high"), "quick": ("low", "high")},
+                      "1 basis element, and more elements than lighting configurations",
+                      "use basis <= configurations", "learning"),
+    "configurations": KnobRule(_both("low"), "one lighting configuration: a rank-1 dataset",
+                               "use >= 16 configurations", "learning"),
+    "gamma": KnobRule(_both("low", "high"),
+                      "transfer stored at gamma 0.1 and 10", "keep gamma in 1..2.2", "learning",
+                      lights=("huge-constant",)),
+    "samples": KnobRule(_both(1, "low"), "training on 1 point (below the range) and the fewest",
+                        "train on >= 10⁴ points", "learning"),
+    "epochs": KnobRule(_both("low"), "a single training epoch", "train >= 20 epochs", "learning"),
+    "learning_rate": KnobRule(_both("high"), "Adam learning rate 1.0 (divergence)",
+                              "keep the learning rate at 1e-3..1e-2", "learning"),
+    "pe_frequencies": KnobRule(_both("high"), "positional encoding up to sin(2^15 pi x) in float32",
+                               "use <= 8 frequencies", "learning"),
+    "target_margin": KnobRule(_both("high"), "targets mapped to [-0.999, 0.999] under tanh",
+                              "keep target_margin near 0.9", "learning"),
+    "max_steps": KnobRule(_both("low"), "one sphere-tracing step per primary ray",
+                          "use >= 64 steps", "sampling"),
+    "rays_per_point": KnobRule(_both("low"), "one visibility ray per point",
+                               "use >= 64 rays per point", "sampling"),
+    "rays_per_probe": KnobRule(_both("low"), "one ray per probe",
+                               "use >= 64 rays per probe", "sampling"),
+    "paths_per_texel": KnobRule(_both("low"), "one path per lightmap texel",
+                                "use >= 16 paths per texel", "sampling"),
+    "env_lights": KnobRule(_both("low"), "the environment drawn by one median-cut light",
+                           "use >= 16 median-cut lights", "sampling"),
+    "measurement_points": KnobRule(_both("low"), "one measurement point",
+                                   "use >= 64 measurement points", "sampling"),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One extreme setting of one method.
+
+    Attributes
+    ----------
+    name : str
+        Unique within a method, e.g. ``sh_bands=1``, ``light=black``, ``scale=1e-04``.
+    group : str
+        ``moderate``, ``knob``, ``storage``, ``learning``, ``sampling``, ``material``,
+        ``light`` or ``scene``.
+    overrides : dict
+        Config knobs on top of the moderate config.
+    light : str
+        A :data:`prtbench.stability.lights.LIGHTS` name, or ``""`` for the base light.
+    shininess : float or None
+        Phong exponent given to every glossy material (the glossy variant is used).
+    scale, translate : float
+        The scene (and its views) scaled about the origin, then moved by ``translate`` along
+        (1, 1, 1)/√3.
+    geometry : str
+        ``""``, ``grazing`` (camera 10⁻³ of the diagonal above the ground, looking along it),
+        ``edge-on`` (the ground as one triangle, the camera in its plane),
+        ``flipped-normals`` (the non-ground objects' normals negated), ``degenerate``
+        (zero-area and sliver triangles added to the ground), ``t-junction`` (a T-junction
+        on the ground) or ``coincident`` (the ground duplicated in place).
+    scene : str
+        Another registered scene (its default parameters) instead of the base scene.
+    note, advice : str
+        What the case probes; what to do instead when it is degraded.
+    compare_image : bool
+        The case renders the moderate case's picture (same light and pixels), so the image
+        itself is compared with the moderate render too (``psnr_vs_moderate``).
+    """
+
+    name: str
+    group: str
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    light: str = ""
+    shininess: float | None = None
+    scale: float = 1.0
+    translate: float = 0.0
+    geometry: str = ""
+    scene: str = ""
+    note: str = ""
+    advice: str = ""
+    compare_image: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "overrides": dict(self.overrides)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> "Case":
+        return cls(**dict(data))
+
+
+def _format_value(value: Any) -> str:
+    if isinstance(value, float) and (value != 0 and (abs(value) >= 1e4 or abs(value) < 1e-3)):
+        return f"{value:.0e}"
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def base_case(method_cls) -> dict[str, Any]:
+    """Scene, variant, scene params, light and config overrides of ``method_cls``'s moderate case.
+
+    ``sphere-over-plane`` (:data:`BASE_SCENE`) unless the method refuses it (e.g. it needs an
+    SDF scene), then the method's regression scene; the regression case's config overrides
+    always apply (they make the smoke profile's training or lighting meaningful).
+    """
+    from ..regress import regression_case
+
+    regression = regression_case(method_cls)
+    base = {**BASE_SCENE, "overrides": dict(regression.get("overrides", {}))}
+    if not _accepts(method_cls, base["scene"], "diffuse", base["scene_params"]):
+        base.update(scene=regression["scene"], variant="diffuse",
+                    scene_params=dict(regression.get("scene_params", {})))
+    return base
+
+
+def _accepts(method_cls, scene: str, variant: str, scene_params: Mapping[str, Any]) -> bool:
+    """Whether ``method_cls`` validates ``scene`` (default config); building it is cheap here."""
+    from ..scene import get_scene
+
+    try:
+        method_cls.validate(get_scene(scene, variant=variant, **dict(scene_params)),
+                            method_cls.make_config(profile="smoke"))
+    except PrtbenchError:
+        return False
+    return True
+
+
+def knob_cases(method_cls, *, profile: str) -> list[Case]:
+    """One case per extreme of every knob of ``method_cls.Config`` that has a rule."""
+    moderate = method_cls.make_config(profile=profile)
+    cases = []
+    for f in dataclasses.fields(method_cls.Config):
+        rule = KNOB_RULES.get(f.name)
+        if rule is None:
+            continue
+        seen = {getattr(moderate, f.name)}
+        for token in rule.values[profile]:
+            value = f.metadata.get(token) if token in ("low", "high") else token
+            if value is None or value in seen:
+                continue
+            choices = f.metadata.get("choices")
+            if choices is not None and value not in choices:
+                continue
+            seen.add(value)
+            name = f"{f.name}={_format_value(value)}"
+            cases.append(Case(name, rule.group, overrides={f.name: value}, note=rule.note,
+                              advice=rule.advice, compare_image=True))
+            cases += [Case(f"{name} light={light}", rule.group, overrides={f.name: value},
+                           light=light, note=f"{rule.note}, under the {light} light",
+                           advice=rule.advice) for light in rule.lights]
+    return cases
+
+
+def light_cases(*, profile: str) -> list[Case]:
+    """Every extreme light (:data:`prtbench.stability.lights.LIGHTS`); smoke keeps four."""
+    from .lights import LIGHTS
+
+    names = list(LIGHTS) if profile == "quick" else ["black", "huge-constant", "below-horizon",
+                                                     "sun-0.1deg"]
+    return [Case(f"light={name}", "light", light=name, note=LIGHTS[name].note,
+                 advice="more SH bands (or windowing) for all-frequency light, or a method "
+                        "that stores visibility per pixel")
+            for name in names]
+
+
+SCALE_ADVICE = ("model the scene in units where its bounds diagonal is 0.01..1e6 and keep it "
+                "near the origin")
+
+
+def scene_cases(*, profile: str, sdf: bool) -> list[Case]:
+    """Scale, translation and geometry cases (SDF scenes: scale and translation only)."""
+    cases = [Case("scale=1e-04", "scene", scale=1e-4, note="scene scaled by 1e-4",
+                  advice=SCALE_ADVICE, compare_image=True),
+             Case("scale=1e-02", "scene", scale=1e-2,
+                  note="scene scaled by 1e-2 (near the smallest the reference accepts)",
+                  advice=SCALE_ADVICE, compare_image=True),
+             Case("scale=1e+04", "scene", scale=1e4, note="scene scaled by 1e4",
+                  advice=SCALE_ADVICE, compare_image=True),
+             Case("translate=1e+05", "scene", translate=1e5,
+                  note="scene moved 1e5 from the origin (float32 positions)",
+                  advice=SCALE_ADVICE, compare_image=True),
+             Case("translate=5e+02", "scene", translate=5e2,
+                  note="scene moved 500 from the origin (near the farthest the reference "
+                       "accepts at scale 1)", advice=SCALE_ADVICE, compare_image=True)]
+    if sdf:
+        return cases
+    geometry = [("grazing", "camera 1e-3 of the diagonal above the ground, looking along it",
+                 "avoid views in the plane of large flat surfaces (or raise the ground's "
+                 "tessellation)"),
+                ("edge-on", "a single-triangle ground seen edge-on (camera in its plane)",
+                 "avoid views in the plane of large flat surfaces"),
+                ("flipped-normals", "object normals negated (winding kept)",
+                 "fix the mesh's normals: surfaces are one-sided"),
+                ("degenerate", "zero-area and sliver triangles added to the ground",
+                 "remove degenerate triangles before the precompute"),
+                ("t-junction", "a T-junction on the ground's diagonal",
+                 "weld the mesh: remove T-junctions before a per-vertex precompute"),
+                ("coincident", "the ground duplicated in place (z-fighting)",
+                 "remove coincident surfaces")]
+    if profile == "smoke":
+        geometry = [g for g in geometry if g[0] in ("grazing", "edge-on", "degenerate")]
+    return cases + [Case(f"geometry={name}", "scene", geometry=name, note=note, advice=advice)
+                    for name, note, advice in geometry]
+
+
+def material_cases(*, profile: str) -> list[Case]:
+    """The Phong exponents of :data:`SHININESS` (for methods that render glossy materials)."""
+    return [Case(f"shininess={_format_value(s)}", "material", shininess=s,
+                 note="Phong exponent of every glossy material (zonal recurrence, reference "
+                      "BRDF sampling)",
+                 advice="use exponents <= 1e3 with <= 8 SH bands: a sharper lobe is truncated "
+                        "to the bands' blur")
+            for s in SHININESS[profile]]
+
+
+def learning_cases(method_cls) -> list[Case]:
+    """Training on all-constant targets: the ``plane`` scene (every point's transfer is the
+    same), for methods that learn from sampled points (a ``samples`` knob)."""
+    if "samples" not in {f.name for f in dataclasses.fields(method_cls.Config)}:
+        return []
+    return [Case("targets=constant", "learning", scene="plane",
+                 note="training on all-constant targets (the unoccluded plane)",
+                 advice="a constant transfer needs no network: use vertex PRT")]
+
+
+MODERATE = Case("moderate", "moderate", note="the method's moderate setting (the comparison)",
+                compare_image=False)
+
+
+def method_cases(method_cls, *, profile: str) -> list[Case]:
+    """The moderate case first, then every case that applies to ``method_cls``."""
+    if profile not in PROFILES:
+        from ..errors import UnknownNameError
+
+        raise UnknownNameError("stability profile", profile, PROFILES)
+    base = base_case(method_cls)
+    from ..scene import get_scene
+
+    scene = get_scene(base["scene"], variant=base["variant"], **base["scene_params"])
+    cases = [MODERATE, *knob_cases(method_cls, profile=profile), *light_cases(profile=profile),
+             *scene_cases(profile=profile, sdf=scene.sdf is not None)]
+    if scene.sdf is None:
+        cases += learning_cases(method_cls)
+    if scene.sdf is None and _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
+        cases += material_cases(profile=profile)
+    return cases
+
+
+def select(cases: Sequence[Case], names: Sequence[str] | None) -> list[Case]:
+    """``cases`` whose name is in ``names`` (None: all), the moderate case always kept first."""
+    if not names:
+        return list(cases)
+    known = {c.name for c in cases}
+    from ..errors import UnknownNameError
+
+    for name in names:
+        if name not in known:
+            raise UnknownNameError("stability case", name, known)
+    return [c for c in cases if c.name == "moderate" or c.name in names]
+
+
+def is_finite_number(value: Any) -> bool:
+    """A real finite number (not None, NaN or ±inf)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

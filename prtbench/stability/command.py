@@ -1,0 +1,97 @@
+"""``prtbench stability``: measure the matrix, store it, write the report (and JSON)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """The subcommand; exit status 1 when any case ``failed`` (a bug), else 0.
+
+    Every output location, the profile, the methods and the case names are checked before
+    any case runs.
+    """
+    from .. import outputs
+    from ..method import METHODS
+    from ..results import default_path
+    from .cases import PROFILES
+    from .matrix import load_rows, plan, run_matrix
+
+    if args.profile not in PROFILES:
+        from ..errors import UnknownNameError
+
+        raise UnknownNameError("stability profile", args.profile, PROFILES)
+    if args.timeout is not None and not args.timeout > 0:
+        from ..errors import InvalidInputError
+
+        raise InvalidInputError(f"--timeout {args.timeout}; accepted: seconds > 0")
+    from .matrix import CORE
+
+    methods = args.method or [*METHODS.names(), CORE]
+    results = Path(args.results) if args.results else None
+    outputs.check_folder("--reports", Path(args.reports))
+    if args.json:
+        outputs.check_file("--json", Path(args.json))
+    if args.from_store:
+        from .matrix import stored_rows
+
+        return _write(stored_rows(profile=args.profile, results_path=results,
+                                  partial=args.partial), args, None)
+    if args.out:
+        outputs.check_folder("--out", Path(args.out))
+    outputs.check_results_store("--results", results or default_path())
+    outputs.check_cache()
+    plan(methods, profile=args.profile, cases=args.case)  # unknown names fail here
+    print(f"[stability] profile={args.profile} methods={','.join(methods)}", file=sys.stderr)
+    run_id = run_matrix(methods, profile=args.profile, results_path=results,
+                        out_dir=Path(args.out) if args.out else None, cases=args.case,
+                        timeout_s=args.timeout, echo=not args.quiet)
+    return _write(load_rows(run_id, results_path=results), args, run_id)
+
+
+def _write(rows, args: argparse.Namespace, run_id: str | None) -> int:
+    """Reports (and JSON) of ``rows``; 1 when any row failed."""
+    from .. import strict_json
+    from .report import method_summary, write_reports
+
+    for path in write_reports(rows, Path(args.reports)):
+        print(f"wrote {path}")
+    if args.json:
+        from ..cache import atomic_path
+
+        with atomic_path(Path(args.json)) as tmp:
+            tmp.write_text(strict_json.dumps({"run_id": run_id, "profile": args.profile,
+                                              "rows": rows}, indent=2))
+        print(f"wrote {args.json}")
+    for method in dict.fromkeys(r["method"] for r in rows):
+        print(method_summary(method, [r for r in rows if r["method"] == method]))
+    failed = [r for r in rows if r["outcome"] == "failed"]
+    if failed:
+        print(f"prtbench: {len(failed)} stability case(s) failed: "
+              f"{', '.join(r['method'] + ' ' + r['case'] for r in failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def add_parser(sub) -> None:
+    """The ``stability`` subparser."""
+    p = sub.add_parser("stability", help="every method at the extremes of its knobs, lights "
+                                         "and scenes: ok/degraded/refused/failed")
+    p.add_argument("--method", action="append",
+                   help="only these methods, or sh-core (default: every method and sh-core)")
+    p.add_argument("--profile", default="quick", help="smoke or quick (default quick)")
+    p.add_argument("--case", action="append", help="only these cases (the moderate one always runs)")
+    p.add_argument("--json", default=None, help="also write the rows here (strict JSON)")
+    p.add_argument("--results", default=None, help="results database (default results/prtbench.sqlite)")
+    p.add_argument("--reports", default="reports", help="folder of table-stability.{md,csv}")
+    p.add_argument("--out", default=None, help="keep the cases' images here (default: discarded)")
+    p.add_argument("--timeout", type=float, default=None,
+                   help="seconds per case before it counts as a hang (default: smoke 300, quick 1200)")
+    p.add_argument("--quiet", action="store_true", help="no per-case progress lines")
+    p.add_argument("--from-store", action="store_true",
+                   help="rewrite the report from the newest stored row of each case (no measuring)")
+    p.add_argument("--partial", action="store_true",
+                   help="with --from-store: runs interrupted before their end count too (marked)")
+    p.set_defaults(func=run_command)

@@ -1,0 +1,163 @@
+"""``reports/table-stability.{md,csv}``: one row per (method, case), from the stored rows only.
+
+The Markdown starts with a per-method summary line ("vertex: ok in 14 cases, degraded at
+light=below-horizon (...), refused 2 (...)"), then, for each method, its table, and ends with
+what a user should do instead for every ``degraded`` row. The CSV holds every stored number.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from .outcome import FLIP_MARGIN, OUTCOMES, PSNR_MARGIN_DB
+
+#: CSV columns, in order (every number the Markdown prints is among them).
+CSV_COLUMNS = (
+    "method", "case", "group", "outcome", "reason", "scene", "variant", "psnr_masked",
+    "flip_masked", "ssim_masked", "moderate_psnr_masked", "moderate_flip_masked",
+    "psnr_vs_moderate", "flip_vs_moderate", "image_nonfinite", "artifact_nonfinite",
+    "image_peak", "reference_peak", "artifact_peak", "storage_dtype", "storage_max", "overflow",
+    "underflow", "precompute_s", "precompute_cached", "memory_bytes", "artifact_bytes",
+    "peak_rss_bytes", "frame_ms", "wall_s", "status", "run_id", "git_sha", "profile",
+    "renderer", "device", "ringing", "rel_l2", "advice", "note")
+
+
+def _num(value: Any, fmt: str = ".2f") -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    if fmt == "d":  # counts read back through pandas may be floats
+        value = int(value)
+    return format(value, fmt)
+
+
+def _mib(value: Any) -> str:
+    return "-" if value is None else f"{float(value) / 2**20:.1f}"
+
+
+def _kib(value: Any) -> str:
+    return "-" if value is None else f"{float(value) / 2**10:.1f}"
+
+
+def _short(text: Any, limit: int = 90) -> str:
+    text = " ".join(str(text or "").split()).replace("|", "/")
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+def method_summary(method: str, rows: Sequence[Mapping[str, Any]]) -> str:
+    """One line: counts per outcome, naming the degraded, refused and failed cases."""
+    counts = Counter(r["outcome"] for r in rows)
+    parts = [f"ok in {counts.get('ok', 0)} cases"]
+    for outcome in ("degraded", "refused", "failed"):
+        named = [r for r in rows if r["outcome"] == outcome]
+        if not named:
+            continue
+        if outcome == "degraded":
+            parts.append("degraded at " + ", ".join(
+                f"{r['case']} ({_short(r['reason'], 60)})" for r in named))
+        else:
+            parts.append(f"{outcome} {len(named)} ({', '.join(r['case'] for r in named)})")
+    return f"{method}: " + ", ".join(parts)
+
+
+def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The Markdown report of one matrix run's stored rows."""
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    first = rows[0] if rows else {}
+    totals = Counter(r["outcome"] for r in rows)
+    revisions = list(dict.fromkeys(str(r.get("git_sha", "?")) for r in rows))
+    shas = (f"`{revisions[0]}`" if len(revisions) == 1 else
+            f"at {len(revisions)} revisions (newest row `{revisions[-1]}`)")
+    devices = ", ".join(dict.fromkeys(str(r.get("device", "?")) for r in rows))
+    lines = ["# Numerical stability at the extremes (issue #15)", "",
+             f"Profile `{first.get('profile', '?')}`, code {shas} (per row in the CSV), "
+             f"device {devices}. One view per case, path reference (Mitsuba). "
+             f"Outcomes: {', '.join(f'{totals.get(o, 0)} {o}' for o in OUTCOMES)}.", "",
+             f"`degraded`: finite, but masked PSNR more than {PSNR_MARGIN_DB:g} dB below, or "
+             f"masked FLIP more than {FLIP_MARGIN:g} above, the method's `moderate` case (its "
+             "profile defaults on the same base scene under `sky`). `refused`: a one-line error "
+             "(the correct answer to an impossible request). `failed`: NaN/Inf, a crash, a "
+             "traceback or a timeout (always a bug). `vs mod.`: the image against the moderate "
+             "render, where the case renders the same picture (knobs, scale, translation). "
+             "`peak / max`: the artifact's largest |value| and its storage type's maximum; "
+             "`over`/`under`: values above that maximum / non-zero below its smallest normal.",
+             "", "Not in the catalogue yet: a 10⁶-triangle mesh for the per-vertex methods, SDF "
+             "sphere tracing with |∇d| ≪ 1, wavelet k = 1 / all (no wavelet method is "
+             "registered).", "", "## Summary", ""]
+    lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
+    partial = [m for m in methods if any(r.get("partial_run") for r in rows if r["method"] == m)]
+    if partial:
+        lines += ["", "Partial (the run was stopped before its end; the cases listed are all that "
+                  "was measured): " + ", ".join(
+                      f"{m} ({sum(r['method'] == m for r in rows)} cases)" for m in partial)]
+    for method in methods:
+        mine = [r for r in rows if r["method"] == method]
+        if mine[0].get("group") == "sh-core":
+            lines += ["", f"## {method}", "", "SH projection of the case lights reconstructed on a "
+                      "64x128 grid (ringing: most negative over largest value; rel. L2 against "
+                      "the light), and the Phong zonal coefficients at 16 bands.", "",
+                      "| case | outcome | ringing | rel. L2 | reason |", "|---|---|---:|---:|---|"]
+            lines += [f"| {r['case']} | **{r['outcome']}** | {_num(r.get('ringing'), '.3f')} | "
+                      f"{_num(r.get('rel_l2'), '.3f')} | {_short(r.get('reason'))} |" for r in mine]
+            continue
+        lines += ["", f"## {method}", "",
+                  f"Base scene `{mine[0].get('scene')}`.", "",
+                  "| case | outcome | PSNR_m | FLIP_m | vs mod. PSNR | peak / max (dtype) | over | under "
+                  "| precompute s | memory KiB | peak RSS MiB | reason |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+        for r in mine:
+            peak = ("-" if r.get("artifact_peak") is None else
+                    f"{_num(r.get('artifact_peak'), '.3g')} / {_num(r.get('storage_max'), '.3g')} "
+                    f"({r.get('storage_dtype')})")
+            lines.append(
+                f"| {r['case']} | **{r['outcome']}** | {_num(r.get('psnr_masked'))} | "
+                f"{_num(r.get('flip_masked'), '.3f')} | {_num(r.get('psnr_vs_moderate'))} | "
+                f"{peak} | "
+                f"{_num(r.get('overflow'), 'd')} | {_num(r.get('underflow'), 'd')} | "
+                f"{_num(r.get('precompute_s'), '.1f')} | {_kib(r.get('memory_bytes'))} | "
+                f"{_mib(r.get('peak_rss_bytes'))} | {_short(r.get('reason'))} |")
+    degraded = [r for r in rows if r["outcome"] == "degraded"]
+    lines += ["", "## What to do instead (degraded cases)", ""]
+    lines += [f"- {r['method']} `{r['case']}` ({_short(r.get('note'), 80)}): {r.get('advice')}"
+              for r in degraded] or ["- (none)"]
+    failed = [r for r in rows if r["outcome"] == "failed"]
+    if failed:
+        lines += ["", "## Failed (bugs)", ""]
+        lines += [f"- {r['method']} `{r['case']}`: {_short(r.get('reason'), 300)}" for r in failed]
+    return "\n".join(lines) + "\n"
+
+
+def _cell(value: Any) -> Any:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return value
+
+
+def format_csv(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The CSV report: :data:`CSV_COLUMNS` of every stored row."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for r in rows:
+        writer.writerow([_cell(r.get(c)) for c in CSV_COLUMNS])
+    return buf.getvalue()
+
+
+def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path) -> tuple[Path, Path]:
+    """Write ``table-stability.md`` and ``.csv`` into ``folder`` atomically; their paths."""
+    from ..cache import atomic_path
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    md, csv_path = folder / "table-stability.md", folder / "table-stability.csv"
+    for path, text in ((md, format_markdown(rows)), (csv_path, format_csv(rows))):
+        with atomic_path(path) as tmp:
+            tmp.write_text(text)
+    return md, csv_path

@@ -1,0 +1,232 @@
+"""Run stability cases through the ordinary runner, one process per case, with a timeout.
+
+Each case runs in a fresh (spawned) process: a crash or a hang of one case is measured as
+``failed`` and cannot take the matrix down, and the process's peak resident memory is the
+case's own. Inside, the case is an ordinary :func:`prtbench.runner.prepare` /
+:func:`prtbench.runner.execute` job (path reference, results rows in the store, images under
+the output folder), on the case's scene (:func:`prtbench.stability.scenes.case_scene`) and
+light; then the artifact (a cache hit) and the image are inspected for non-finite values,
+their peak magnitude against the storage type's range, and the image is compared with the
+moderate case's render where the case renders the same picture.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import multiprocessing
+import time
+import traceback
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .cases import Case
+
+#: Seconds a case may run before it counts as a hang (``failed``), per profile.
+TIMEOUTS = {"smoke": 300.0, "quick": 1200.0}
+#: Storage knobs whose value names the dtype the renderer keeps the artifact in.
+STORAGE_KNOBS = ("storage", "precision")
+#: A display value below half an 8-bit step prints as black (as prtbench.degeneracy).
+BLACK_DISPLAY = 0.5 / 255.0
+
+
+def _storage_dtype(config: Any, arrays: Mapping[str, np.ndarray]) -> np.dtype:
+    """The float type the method stores its artifact in: a storage knob's, else the widest."""
+    for knob in STORAGE_KNOBS:
+        value = getattr(config, knob, None)
+        if value in ("float16", "float32", "float64"):
+            return np.dtype(value)
+    floats = [a.dtype for a in arrays.values() if np.issubdtype(a.dtype, np.floating)]
+    return max(floats, key=lambda d: d.itemsize) if floats else np.dtype(np.float32)
+
+
+def artifact_stats(arrays: Mapping[str, np.ndarray], dtype: np.dtype) -> dict[str, Any]:
+    """Non-finite count, peak |value| and overflow/underflow counts of ``arrays`` in ``dtype``.
+
+    Parameters
+    ----------
+    arrays : mapping of str to ndarray
+        The artifact's arrays (non-float arrays are skipped).
+    dtype : numpy dtype
+        The storage type: ``overflow`` counts finite values above its maximum, ``underflow``
+        non-zero values below its smallest normal number (stored subnormal or as 0).
+
+    Returns
+    -------
+    dict
+        ``artifact_nonfinite``, ``artifact_peak``, ``storage_dtype``, ``storage_max``,
+        ``overflow``, ``underflow``, ``artifact_values``.
+    """
+    info = np.finfo(dtype)
+    nonfinite = overflow = underflow = values = 0
+    peak = 0.0
+    for array in arrays.values():
+        if not np.issubdtype(array.dtype, np.floating) or array.size == 0:
+            continue
+        a = np.abs(np.asarray(array, dtype=np.float64))
+        finite = np.isfinite(a)
+        nonfinite += int(a.size - np.count_nonzero(finite))
+        values += int(a.size)
+        a = a[finite]
+        if a.size:
+            peak = max(peak, float(a.max()))
+            overflow += int(np.count_nonzero(a > float(info.max)))
+            underflow += int(np.count_nonzero((a > 0) & (a < float(info.tiny))))
+    return {"artifact_nonfinite": nonfinite, "artifact_peak": peak, "storage_dtype": str(dtype),
+            "storage_max": float(info.max), "overflow": overflow, "underflow": underflow,
+            "artifact_values": values}
+
+
+def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
+             results_path: Path | None, out_dir: Path):
+    from ..runner import RunRequest
+    from .lights import LIGHTS
+
+    light = LIGHTS[case.light].build() if case.light else base["light"]
+    variant = "glossy" if case.shininess is not None else base["variant"]
+    params = {} if case.scene else dict(base.get("scene_params", {}))
+    return RunRequest(method=method, scene=case.scene or base["scene"], variant=variant,
+                      light=light, views=1, profile=profile,
+                      overrides={**base.get("overrides", {}), **case.overrides},
+                      scene_params=params, out_dir=out_dir,
+                      results_path=results_path, store_results=True, write_images=True)
+
+
+def _inspect(prepared, summary, case: Case, moderate_exr: str | None) -> dict[str, Any]:
+    """Artifact and image facts of a finished run (the artifact is a cache hit)."""
+    from .. import imageio, metrics
+    from ..method import load_or_precompute
+    from ..reference import render_reference
+    from ..runner import geometry_mask
+
+    scene, config = prepared.scene, prepared.config
+    artifact = load_or_precompute(prepared.method_cls, scene, config, progress=False)
+    out = artifact_stats(artifact.arrays, _storage_dtype(config, artifact.arrays))
+    out["artifact_bytes"] = artifact.nbytes
+    view = summary.views[0]
+    image = imageio.read_exr(view.files["exr"])
+    finite = np.isfinite(image)
+    out["image_nonfinite"] = int(image.size - np.count_nonzero(finite))
+    out["image_peak"] = float(np.abs(image[finite]).max()) if finite.any() else math.nan
+    test_d = imageio.display(np.where(finite, image, 0.0), exposure=scene.exposure)
+    out["image_black"] = bool(test_d.max() < BLACK_DISPLAY)
+    ref = render_reference(scene, prepared.light, scene.trajectory.views[0],
+                           width=prepared.width, height=prepared.height,
+                           spp=prepared.profile.reference_spp,
+                           bounces=int(getattr(config, "bounces", 0)))
+    ref_d = imageio.display(ref.image, exposure=scene.exposure)
+    out["reference_black"] = bool(ref_d.max() < BLACK_DISPLAY)
+    out["reference_peak"] = float(np.abs(ref.image).max())
+    out["covered_pixels"] = view.covered_pixels
+    if case.compare_image and moderate_exr and out["image_nonfinite"] == 0:
+        moderate = imageio.read_exr(moderate_exr)
+        if moderate.shape == image.shape and np.isfinite(moderate).all():
+            mask = geometry_mask(scene, scene.trajectory.views[0], prepared.width,
+                                 prepared.height)
+            vs = metrics.compute_metrics(test_d, imageio.display(moderate, exposure=scene.exposure),
+                                         mask=mask, names=("psnr", "flip"))
+            out["psnr_vs_moderate"] = vs.get("psnr_masked")
+            out["flip_vs_moderate"] = vs.get("flip_masked")
+    return out
+
+
+def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
+                 results_path: Path | None, out_dir: Path,
+                 moderate_exr: str | None = None) -> dict[str, Any]:
+    """Run one case in this process; every number the report prints.
+
+    Returns
+    -------
+    dict
+        ``error_kind`` (``""``, ``refused`` or ``exception``) and ``error``; for a run that
+        finished, the run id, masked PSNR/FLIP/SSIM against the reference, frame ms, memory,
+        precompute time, status, and the facts of :func:`_inspect`; always ``wall_s`` and
+        ``peak_rss_bytes``.
+    """
+    import resource
+
+    from ..errors import PrtbenchError
+    from ..runner import execute, prepare
+    from .scenes import case_scene
+
+    start = time.perf_counter()
+    out: dict[str, Any] = {"error_kind": "", "error": ""}
+    try:
+        prepared = prepare(_request(method, case, profile=profile, base=base,
+                                    results_path=results_path, out_dir=out_dir))
+        scene = case_scene(prepared.scene, case)
+        prepared.method_cls.validate(scene, prepared.config)
+        prepared = dataclasses.replace(prepared, scene=scene)
+        summary = execute(prepared, progress=False, echo=False)
+        view = summary.views[0]
+        out.update(run_id=summary.run_id, status=summary.status,
+                   status_reason=summary.status_reason, frame_ms=view.frame_ms,
+                   memory_bytes=summary.memory_bytes, precompute_s=summary.precompute_s,
+                   renderer=summary.renderer,
+                   precompute_cached=summary.precompute_cached,
+                   reference_noise=summary.reference_noise_display,
+                   **{k: view.metrics.get(k) for k in ("psnr_masked", "flip_masked",
+                                                       "ssim_masked", "psnr")})
+        out.update(_inspect(prepared, summary, case, moderate_exr))
+        if "psnr_masked" in out and view.status == "ok":
+            out["image_exr"] = view.files.get("exr", "")
+    except PrtbenchError as exc:
+        out.update(error_kind="refused", error=str(exc))
+    except Exception as exc:  # noqa: BLE001 - any other exception is the bug being measured
+        frames = traceback.extract_tb(exc.__traceback__)
+        where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+        out.update(error_kind="exception", error=f"{type(exc).__name__}: {exc}{where}")
+    out["wall_s"] = time.perf_counter() - start
+    out["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return out
+
+
+def _child(conn, method: str, case_json: dict, kwargs: dict) -> None:
+    """Spawned process body: measure the case and send the result back."""
+    result = measure_case(method, Case.from_json(case_json), **kwargs)
+    conn.send(result)
+    conn.close()
+
+
+def run_case(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
+             results_path: Path | None, out_dir: Path, moderate_exr: str | None = None,
+             timeout_s: float | None = None) -> dict[str, Any]:
+    """:func:`measure_case` in a fresh spawned process, killed after ``timeout_s``.
+
+    A process that dies without an answer is ``error_kind="crash"`` (with its exit code); one
+    still running after the timeout is killed and ``error_kind="timeout"``.
+    """
+    timeout_s = TIMEOUTS[profile] if timeout_s is None else float(timeout_s)
+    ctx = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
+    parent, child = ctx.Pipe(duplex=False)
+    kwargs = {"profile": profile, "base": dict(base), "results_path": results_path,
+              "out_dir": out_dir, "moderate_exr": moderate_exr}
+    process = ctx.Process(target=_child, args=(child, method, case.to_json(), kwargs),
+                          daemon=True)
+    start = time.perf_counter()
+    process.start()
+    child.close()
+    result = None
+    try:
+        if parent.poll(timeout_s):
+            try:
+                result = parent.recv()
+            except EOFError:
+                result = None
+    finally:
+        process.join(5.0 if result is not None else 0.1)
+        if process.is_alive():
+            process.kill()
+            process.join()
+        parent.close()
+    wall = time.perf_counter() - start
+    if result is not None:
+        return result
+    if wall >= timeout_s:
+        return {"error_kind": "timeout", "error": f"no answer after {timeout_s:g} s (killed)",
+                "wall_s": wall}
+    return {"error_kind": "crash", "error": f"process died with exit code {process.exitcode}",
+            "wall_s": wall}

@@ -1,0 +1,186 @@
+"""A stability case's scene: the base scene with the case's material, transform and geometry.
+
+The transformed scene keeps the base scene's name and records the case in ``params`` (which
+the runner stores with every row and which enters no cache key: the content hash covers the
+geometry and materials themselves). Built scenes pass the same extent check as any built-in
+or file scene (:func:`prtbench.scene_params.check_extent`), so a scale whose float32 ray
+offsets are meaningless is refused with the same one-line message a user would get.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..scene import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
+
+#: Height of the grazing camera above the ground, as a fraction of the scene's diagonal.
+GRAZING_HEIGHT = 1e-3
+#: The direction of the translation case.
+TRANSLATE_AXIS = np.ones(3) / math.sqrt(3.0)
+
+
+def _material(material: Material, shininess: float | None) -> Material:
+    if shininess is None or not material.is_glossy:
+        return material
+    return dataclasses.replace(material, shininess=shininess)  # validated: [0, 1e4]
+
+
+def _transform_mesh(mesh: TriangleMesh, scale: float, offset: np.ndarray) -> TriangleMesh:
+    # float64 until the mesh casts to float32: that cast is the precision loss measured.
+    positions = mesh.positions.astype(np.float64) * scale + offset
+    return TriangleMesh(positions, mesh.faces, mesh.normals, mesh.uvs)
+
+
+def _transform_view(view: View, scale: float, offset: np.ndarray) -> View:
+    eye = tuple(float(c) for c in np.asarray(view.eye, dtype=np.float64) * scale + offset)
+    target = tuple(float(c) for c in np.asarray(view.target, dtype=np.float64) * scale + offset)
+    return dataclasses.replace(view, eye=eye, target=target)
+
+
+def _transform_sdf(sdf, scale: float, offset: np.ndarray):
+    from ..sdf import SdfSurface
+
+    root = sdf.root.scale(scale) if scale != 1.0 else sdf.root
+    if np.any(offset):
+        root = root.translate(*(float(c) for c in offset))
+    lo, hi = (np.asarray(b, dtype=np.float64) * scale + offset for b in sdf.bounds)
+    return SdfSurface(root, (tuple(lo), tuple(hi)), sdf.materials, sdf.name)
+
+
+def _ground_index(scene: Scene) -> int:
+    names = [o.name for o in scene.objects]
+    if "ground" not in names:
+        raise InvalidInputError(f"scene '{scene.name}' has no object named 'ground'; the "
+                                "geometry cases need one")
+    return names.index("ground")
+
+
+def _degenerate(mesh: TriangleMesh) -> TriangleMesh:
+    """``mesh`` plus a zero-area copy of every face and one sliver per face (1e-6 tall)."""
+    faces = mesh.faces
+    zero = np.stack([faces[:, 0], faces[:, 1], faces[:, 0]], axis=1)  # two equal corners
+    p = mesh.positions.astype(np.float64)
+    mid = 0.5 * (p[faces[:, 0]] + p[faces[:, 1]])
+    mid[:, 1] += 1e-6 * float(np.linalg.norm(p.max(0) - p.min(0)))
+    base = len(p)
+    sliver = np.stack([faces[:, 0], faces[:, 1], base + np.arange(len(faces))], axis=1)
+    positions = np.concatenate([p, mid])
+    normals = np.concatenate([mesh.normals, mesh.normals[faces[:, 0]]])
+    uvs = None if mesh.uvs is None else np.concatenate([mesh.uvs, mesh.uvs[faces[:, 0]]])
+    return TriangleMesh(positions, np.concatenate([faces, zero, sliver]), normals, uvs)
+
+
+def _t_junction(mesh: TriangleMesh) -> TriangleMesh:
+    """``mesh`` with its first triangle split at the midpoint of its edge (0, 2) only.
+
+    The neighbour across that edge keeps the whole edge, so the new vertex is a T-junction:
+    per-vertex data interpolates differently on the two sides.
+    """
+    f = mesh.faces
+    a, b, c = (int(i) for i in f[0])
+    p = mesh.positions.astype(np.float64)
+    m = len(p)
+    positions = np.concatenate([p, 0.5 * (p[[a]] + p[[c]])])
+    normals = np.concatenate([mesh.normals, mesh.normals[[a]]])
+    uvs = None if mesh.uvs is None else np.concatenate([mesh.uvs, 0.5 * (mesh.uvs[[a]] + mesh.uvs[[c]])])
+    faces = np.concatenate([[[a, b, m], [m, b, c]], f[1:]])
+    return TriangleMesh(positions, faces, normals, uvs)
+
+
+def _single_triangle(mesh: TriangleMesh) -> TriangleMesh:
+    """One triangle covering ``mesh``'s horizontal extent (a ground as a single triangle)."""
+    p = mesh.positions.astype(np.float64)
+    lo, hi = p.min(0), p.max(0)
+    y = float(hi[1])
+    w = hi - lo
+    # Counter-clockwise seen from +Y, and containing the whole [lo, hi] rectangle.
+    positions = np.array([[lo[0] - w[0], y, hi[2] + w[2]], [hi[0] + 2 * w[0], y, hi[2] + w[2]],
+                          [lo[0] - w[0], y, lo[2] - 2 * w[2]]])
+    normals = np.tile(mesh.normals[:1], (3, 1))
+    return TriangleMesh(positions, [[0, 1, 2]], normals)
+
+
+def _edge_on(scene: Scene) -> Trajectory:
+    """A camera exactly in the ground's plane, looking at the scene's centre above it."""
+    lo, hi = scene.bounds()
+    ground_y = float(scene.objects[_ground_index(scene)].mesh.positions[:, 1].max())
+    centre = 0.5 * (lo + hi)
+    view = scene.trajectory.views[0]
+    eye = np.asarray(view.eye, dtype=np.float64)
+    eye[1] = ground_y
+    return Trajectory((View(eye=tuple(float(c) for c in eye),
+                            target=(float(centre[0]), float(centre[1]), float(centre[2])),
+                            fov_y=view.fov_y),))
+
+
+def _grazing(scene: Scene) -> Trajectory:
+    lo, hi = scene.bounds()
+    ground = scene.objects[_ground_index(scene)].mesh.positions
+    height = float(ground[:, 1].max()) + GRAZING_HEIGHT * scene.diagonal()
+    centre = 0.5 * (lo + hi)
+    eye = (float(lo[0]), height, float(centre[2]))
+    target = (float(hi[0]), height, float(centre[2]))
+    return Trajectory((View(eye=eye, target=target, fov_y=45.0),))
+
+
+def case_scene(base: Scene, case) -> Scene:
+    """The scene ``case`` is measured on (``base`` is not changed).
+
+    Raises
+    ------
+    InvalidInputError
+        A Phong exponent outside the material's range, or a transformed scene outside the
+        extents float32 ray offsets allow (:func:`prtbench.scene_params.check_extent`).
+    """
+    from ..scene_params import check_extent
+    from .lights import LIGHTS
+
+    offset = TRANSLATE_AXIS * case.translate
+    scale = float(case.scale)
+    objects = []
+    for obj in base.objects:
+        mesh = obj.mesh
+        if scale != 1.0 or case.translate:
+            mesh = _transform_mesh(mesh, scale, offset)
+        objects.append(SceneObject(obj.name, mesh, _material(obj.material, case.shininess)))
+    sdf = base.sdf
+    if sdf is not None and (scale != 1.0 or case.translate):
+        sdf = _transform_sdf(sdf, scale, offset)
+    if sdf is not None and case.shininess is not None:
+        sdf = dataclasses.replace(sdf, materials=tuple(_material(m, case.shininess)
+                                                       for m in sdf.materials))
+    trajectory = Trajectory(tuple(_transform_view(v, scale, offset)
+                                  for v in base.trajectory.views))
+    if case.geometry:
+        g = _ground_index(base)
+        ground = objects[g]
+        if case.geometry == "flipped-normals":
+            objects = [o if i == g else SceneObject(
+                o.name, TriangleMesh(o.mesh.positions, o.mesh.faces, -o.mesh.normals, o.mesh.uvs),
+                o.material) for i, o in enumerate(objects)]
+        elif case.geometry == "degenerate":
+            objects[g] = SceneObject(ground.name, _degenerate(ground.mesh), ground.material)
+        elif case.geometry == "coincident":
+            objects.append(SceneObject("ground-copy", ground.mesh, ground.material))
+        elif case.geometry == "t-junction":
+            objects[g] = SceneObject(ground.name, _t_junction(ground.mesh), ground.material)
+        elif case.geometry == "edge-on":
+            objects[g] = SceneObject(ground.name, _single_triangle(ground.mesh), ground.material)
+        elif case.geometry != "grazing":
+            raise InvalidInputError(f"stability geometry '{case.geometry}'; accepted: grazing, "
+                                    "edge-on, flipped-normals, degenerate, t-junction, "
+                                    "coincident")
+    exposure = base.exposure * (LIGHTS[case.light].exposure_factor if case.light else 1.0)
+    params = {**base.params, "stability_case": case.name}
+    scene = dataclasses.replace(base, objects=objects, sdf=sdf, trajectory=trajectory,
+                                exposure=exposure, params=params)
+    if case.geometry in ("grazing", "edge-on"):
+        views = _grazing(scene) if case.geometry == "grazing" else _edge_on(scene)
+        scene = dataclasses.replace(scene, trajectory=views)
+    check_extent(scene, {k: v for k, v in params.items() if k != "stability_case"} | {
+        "scale": scale, "translate": case.translate})
+    return scene
