@@ -368,6 +368,20 @@ def fit_cpca(signals: np.ndarray, *, clusters: int, pca_vectors: int, adaptive: 
     n_signals, d = x.shape
     check_request(n_signals=n_signals, dimension=d, clusters=clusters, pca_vectors=pca_vectors,
                   max_bytes=max_bytes, what=what)
+    from ..parallel import single_threaded_blas
+
+    # The products are many and mid-sized: OpenBLAS's helper threads mostly contend (a 20×
+    # slowdown measured on the 2-core machine under load).
+    with single_threaded_blas():
+        return _fit(x, clusters=clusters, pca_vectors=pca_vectors, adaptive=adaptive,
+                    max_iterations=max_iterations, tolerance=tolerance, seed=seed,
+                    init_samples=init_samples, init_labels=init_labels, progress=progress)
+
+
+def _fit(x: np.ndarray, *, clusters: int, pca_vectors: int, adaptive: bool, max_iterations: int,
+         tolerance: float, seed: int, init_samples: int, init_labels: np.ndarray | None,
+         progress: bool) -> Cpca:
+    n_signals = x.shape[0]
     if init_labels is not None:
         labels = np.asarray(init_labels, np.int32)
         if labels.shape != (n_signals,) or labels.min() < 0 or labels.max() >= clusters:
