@@ -292,6 +292,8 @@ class SloanMatrix(_GlossyVertexMethod):
              "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "
              "glossy transfer matrices")
     _mode = MODE_MATRIX
+    #: The CPCA form of the matrices (Sloan 2003) is regressed as ``sloan-matrix:cpca``.
+    regression_variants = {"cpca": {"compress": "cpca", "clusters": 16, "pca_vectors": 4}}
 
     @classmethod
     def cache_identity(cls, config: SloanMatrixConfig) -> dict:
