@@ -117,14 +117,26 @@ class Cpca:
         return Cpca(self.means.astype(dtype), self.bases.astype(dtype), self.counts,
                     self.cluster, self.weights.astype(dtype), self.history)
 
-    def reconstruct(self) -> np.ndarray:
-        """x̂_i = m_c + B_cᵀ w_i, shape (N, d), in the float dtype of the model."""
-        out = self.means[self.cluster].copy()
-        for k in range(self.n_clusters):
-            rows = np.flatnonzero(self.cluster == k)
-            if len(rows) and self.pca_vectors:
-                out[rows] += self.weights[rows] @ self.bases[k]
+    def reconstruct(self, rows: slice | None = None) -> np.ndarray:
+        """x̂_i = m_c + B_cᵀ w_i, shape (N, d) (or the signals of ``rows``), in the float dtype
+        of the model."""
+        cluster = self.cluster if rows is None else self.cluster[rows]
+        weights = self.weights if rows is None else self.weights[rows]
+        out = self.means[cluster].copy()
+        for k in np.unique(cluster) if self.pca_vectors else ():
+            members = np.flatnonzero(cluster == k)
+            out[members] += weights[members] @ self.bases[k]
         return out
+
+    def squared_error(self, signals: np.ndarray, *, chunk: int = 1 << 14) -> tuple[float, float]:
+        """(Σ ‖x_i − x̂_i‖², Σ ‖x_i‖²) in float64, over chunks of ``chunk`` signals."""
+        error = energy = 0.0
+        for start in range(0, self.n_signals, chunk):
+            sl = slice(start, start + chunk)
+            x = np.asarray(signals[sl], np.float64)
+            error += float(np.sum((self.reconstruct(sl).astype(np.float64) - x) ** 2))
+            energy += float(np.sum(x**2))
+        return error, energy
 
     def project(self, light: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Per-cluster projection of a linear light operator: P_k = [m_k; B_k] · A.
@@ -201,17 +213,22 @@ def _cluster_spectrum(x: np.ndarray, rows: np.ndarray, keep: int) -> tuple[np.nd
                                                                             np.ndarray]:
     """(mean (d,), principal directions (keep, d), their eigenvalues (keep,)) of x[rows]."""
     d = x.shape[1]
-    members = x[rows].astype(np.float64)
-    mean = members.mean(axis=0)
+    small = len(rows) * d <= _SVD_VALUES
+    step = max(1, _SVD_VALUES // d)
+    if small:
+        members = x[rows].astype(np.float64)
+        mean = members.mean(axis=0)
+    else:  # never a float64 copy of a large cluster: chunks of its rows
+        mean = sum(x[rows[i:i + step]].sum(axis=0, dtype=np.float64)
+                   for i in range(0, len(rows), step)) / len(rows)
     if keep == 0:
         return mean, np.zeros((0, d)), np.zeros(0)
-    if len(rows) * d <= _SVD_VALUES:
+    if small:
         _, s, vt = np.linalg.svd(members - mean, full_matrices=False)
         values = s**2
         vectors = vt
     else:  # scatter accumulated over chunks of members (bounded scratch)
         scatter = np.zeros((d, d))
-        step = max(1, _SVD_VALUES // d)
         for start in range(0, len(rows), step):
             part = x[rows[start:start + step]].astype(np.float64) - mean
             scatter += part.T @ part
@@ -416,10 +433,12 @@ def _fit(x: np.ndarray, *, clusters: int, pca_vectors: int, adaptive: bool, max_
         if bar is not None:
             bar.close()
     weights = np.empty((n_signals, bases.shape[1]))
+    step = max(1, _SVD_VALUES // x.shape[1])
     for k in range(clusters):
         rows = np.flatnonzero(labels == k)
-        if len(rows):
-            weights[rows] = (x[rows].astype(np.float64) - means[k]) @ bases[k].T
+        for i in range(0, len(rows), step):
+            part = rows[i:i + step]
+            weights[part] = (x[part].astype(np.float64) - means[k]) @ bases[k].T
     return Cpca(means, bases, counts, labels.astype(np.int32), weights, tuple(history))
 
 

@@ -117,12 +117,12 @@ def compress_signals(signals: np.ndarray, form: Form, *, seed: int, what: str = 
     fit_s = time.perf_counter() - start
     stored = model.stored_arrays()
     arrays = {PREFIX + name: value for name, value in stored.items()}
-    error = model.reconstruct().astype(np.float64) - x
+    error, energy = model.squared_error(x)  # of the stored float32 form, chunked
     meta = {"compress": form.kind, "clusters": form.clusters, "pca_vectors": form.pca_vectors,
             "iterations": len(model.history) - 1,
             "error_history": [float(e) for e in model.history],
-            "transfer_rmse": float(np.sqrt(np.mean(error**2))),
-            "transfer_rms": float(np.sqrt(np.mean(x.astype(np.float64) ** 2))),
+            "transfer_rmse": float(np.sqrt(error / x.size)),
+            "transfer_rms": float(np.sqrt(energy / x.size)),
             "compressed_bytes": model.nbytes, "uncompressed_bytes": int(x.size * 4),
             "fit_s": fit_s}
     return arrays, meta

@@ -78,6 +78,10 @@ def test_error_never_rises_and_iterations_help(adaptive):
     assert np.all(np.diff(history) <= 1e-9 * history[0])
     assert history[-1] < 0.99 * history[0]  # reassign-by-reconstruction beats k-means labels
     assert np.isclose(np.sum((model.reconstruct() - x) ** 2), history[-1], rtol=1e-9)
+    # The chunked error (what a compressed artifact records) is the same sum.
+    error, energy = model.squared_error(x, chunk=7)
+    assert np.isclose(error, history[-1], rtol=1e-9) and np.isclose(energy, np.sum(x**2))
+    assert np.array_equal(model.reconstruct(slice(5, 40)), model.reconstruct()[5:40])
 
 
 def test_adaptive_allocation_keeps_the_budget_and_lowers_the_error():
