@@ -36,17 +36,26 @@ def test_grid_points_map_to_compress_knobs(k, n, want):
         METHODS.get(method).make_config(want)
 
 
-def _row(k, n, rmse, psnr, size):
-    return {"case": "c", "K": k, "n": n, "rmse": rmse, "psnr": psnr, "form_bytes": size}
+def _row(k, n, rmse, psnr, size, ms=1.0, form="cpca"):
+    return {"case": "c", "K": k, "n": n, "rmse": rmse, "psnr": psnr, "form_bytes": size,
+            "frame_ms": ms, "form": form}
 
 
-def test_findings_compare_at_equal_cost_and_bytes():
-    rows = [_row(1, 1, 0.2, 20.0, 100), _row(16, 1, 0.1, 22.0, 300), _row(16, 0, 0.3, 19.0, 400),
-            _row(1, 2, 0.15, 21.0, 150), _row(16, 2, 0.16, 20.5, 500)]
+def test_findings_compare_at_equal_cost_bytes_and_error():
+    rows = [_row(0, -1, 0.0, 25.0, 1000, form="none"),
+            _row(1, 1, 0.2, 20.0, 100, form="pca"), _row(16, 1, 0.1, 22.0, 300),
+            _row(16, 0, 0.3, 19.0, 400, form="vq"),
+            _row(1, 2, 0.15, 21.0, 150, form="pca"), _row(16, 2, 0.16, 20.5, 500)]
     text = tc.findings(rows)
-    assert "CPCA beats global PCA at 1 of 2 n′" in text[0]
-    assert "CPCA beats VQ in 1 of 1 comparisons" in text[1]
+    assert "lower transfer RMSE than global PCA at 1 of 2 n′ and the higher masked PSNR at 1 (0" \
+        in text[0]
+    assert "lower transfer RMSE than VQ in 1 of 1 comparisons" in text[1]
     assert "VQ K=16 400 B" in text[1] and "CPCA K=16 n′=1 300 B" in text[1]
+    assert "matched by pca K=1 n′=1 (RMSE 0.2, 100 B" in text[2]
+    # Near the uncompressed PSNR, a PSNR difference below the resolution is not a ranking.
+    saturated = [_row(0, -1, 0.0, 19.3, 1000, form="none"), _row(1, 4, 0.06, 19.26, 100, form="pca"),
+                 _row(16, 4, 0.02, 19.22, 300)]
+    assert "higher masked PSNR at 0 (1 within 0.25 dB" in tc.findings(saturated)[0]
 
 
 class _Small(tc.CpcaTable):
@@ -86,4 +95,4 @@ def test_small_table_from_the_results_store(tmp_path):
         assert int(r["resident bytes"]) in set(stored["memory_bytes"].astype(int))
         assert math.isclose(float(r["ratio"]) * int(r["form bytes"]),
                             int(by[("—", "—")]["form bytes"]), rel_tol=1e-9)
-    assert "Sloan 2003's finding" in md.read_text()
+    assert "Sloan 2003's finding" in md.read_text() and "than global PCA at" in md.read_text()
