@@ -19,7 +19,6 @@ artifact (a cache hit: the same entry the runner used) and stores them as measur
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 
 import numpy as np

@@ -5,6 +5,7 @@
 methods share. No heavy imports at module level (scikit-learn is imported by the fit).
 """
 
-from .cpca import Cpca, check_request, fit_cpca, rmse, stored_bytes
+from .cpca import Cpca, check_request, stored_bytes
+from .fit import fit_cpca, rmse
 
 __all__ = ["Cpca", "check_request", "fit_cpca", "rmse", "stored_bytes"]

@@ -107,7 +107,7 @@ def compress_signals(signals: np.ndarray, form: Form, *, seed: int, what: str = 
     Meta: the form, the fit's error history, the transfer RMSE over all N·d values of the
     float32 form, the compressed and uncompressed bytes, the fit's wall time.
     """
-    from .cpca import fit_cpca
+    from .fit import fit_cpca
 
     start = time.perf_counter()
     x = np.asarray(signals).reshape(len(signals), -1)

@@ -129,7 +129,7 @@ def test_bytes_come_from_the_stored_arrays():
 def test_large_clusters_use_the_streamed_scatter(monkeypatch):
     """Clusters past the direct-SVD size are fitted from their chunked scatter matrix, with the
     same subspace as the SVD path."""
-    from prtbench.compress import cpca
+    from prtbench.compress import fit as cpca
 
     x = _signals(n=800, d=12)
     direct = fit_cpca(x, clusters=3, pca_vectors=4, seed=1)
