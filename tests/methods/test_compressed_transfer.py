@@ -54,6 +54,8 @@ def _compressed(method, scene, **form):
     ("vertex", {"compress": "cpca", "clusters": 8, "pca_vectors": 3}),
     ("vertex", {"compress": "vq", "clusters": 16}),
     ("vertex", {"compress": "pca", "pca_vectors": 4}),
+    # RGB interreflected transfer: signals of 3n² floats, one operator per colour channel.
+    ("vertex", {"compress": "cpca", "clusters": 8, "pca_vectors": 5, "bounces": 1}),
     ("sloan-matrix", {"compress": "cpca", "clusters": 8, "pca_vectors": 3}),
 ])
 def test_render_from_the_compressed_form_equals_the_reconstructed_transfer(method, form):
@@ -66,7 +68,10 @@ def test_render_from_the_compressed_form_equals_the_reconstructed_transfer(metho
     key = "matrices" if method == "sloan-matrix" else "transfer"
     if key == "matrices":
         rebuilt = rebuilt.reshape(len(rebuilt), 9, 9)
-    want, _ = _render(method, scene, Artifact(method, {key: rebuilt}), BASE)
+    elif form.get("bounces"):
+        rebuilt = rebuilt.reshape(len(rebuilt), 9, 3)
+    plain = {**BASE, **({"bounces": form["bounces"]} if "bounces" in form else {})}
+    want, _ = _render(method, scene, Artifact(method, {key: rebuilt}), plain)
     covered = want.max(axis=-1) > 0
     assert covered.sum() > 500
     assert np.max(np.abs(got - want)) <= 2e-5 * np.max(want)
