@@ -93,7 +93,12 @@ def test_a_diffuse_scene_prunes_glossy_only_and_misfit_methods():
     # Vertices resolve the shadows: no texture resolution above the profile's (quick: 256).
     assert kept["texture-tp"].ladders["texture_resolution"] == [128, 256]
     assert kept["irradiance-volume"].ladders["resolution"] == [4, 8, 16]  # ×2 around 8
-    assert space.size == sum(len(m.candidates) for m in space.methods) == 33
+    # 33, + 9 for wavelet-vertex (generic ladders: light_terms 50/100/200 × cubemap 16/32/64)
+    # + 6 for wavelet-texture (light_terms × the analysed texture_resolution, as texture-tp).
+    assert kept["wavelet-vertex"].ladders == {"light_terms": [50, 100, 200], "cubemap": [16, 32, 64]}
+    assert kept["wavelet-texture"].ladders == {"light_terms": [50, 100, 200],
+                                               "texture_resolution": [128, 256]}
+    assert space.size == sum(len(m.candidates) for m in space.methods) == 48
     # Every registered method is either searched or pruned with its reason.
     from prtbench.method import METHODS
 

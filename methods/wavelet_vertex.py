@@ -1,0 +1,171 @@
+"""Wavelet vertex PRT (Ng, Ramamoorthi and Hanrahan 2003): all-frequency shadows at vertices.
+
+Precompute: per vertex, the shadowed diffuse transport V·max(n·ω, 0) integrated over every
+texel of a 6×N×N cubemap (one embree ray per texel, or S×S), Haar-transformed per face,
+truncated to the ``keep`` largest coefficients, quantised (``storage``) and stored as sparse
+columns (:mod:`prtbench.wavelet`).
+
+Render, each frame: the light's cubemap (its lat-long map integrated over each texel, cached per
+light like an SH projection) is Haar-transformed, its ``light_terms`` = k most important
+coefficients are selected by ``selection`` (non-linear approximation: the set changes with the
+light), the sparse product B_v = kd/π · Σ_{i in k} T_vi L_i is formed on the CPU
+(:meth:`SparseTransport.relight`, vectorised numpy, cost ∝ stored entries of the k columns),
+uploaded as per-vertex radiance and rasterised (GL, interpolated per vertex like ``vertex``).
+
+Timing: ``frame_time`` is the host clock around the whole frame — light Haar transform,
+selection, sparse product, upload, draw and glFinish — because the relighting is CPU work that
+a GPU timer query would not see (the lat-long → cubemap resampling is per light, not per frame,
+and is not timed, as the SH projection of ``vertex`` is not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from prtbench.config import knob
+from prtbench.errors import InvalidInputError
+from prtbench.method import Artifact, FrameTimes, Method, register_method
+from prtbench.wavelet.sparse import SparseTransport
+
+from ._raster import RasterRenderer
+from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_config,
+                              host_frame_times)
+
+
+@dataclass(frozen=True)
+class WaveletVertexConfig:
+    """Knobs of the ``wavelet-vertex`` method."""
+
+    cubemap: int = knob(32, "Cubemap face resolution N, a power of two (6·N² texels and Haar "
+                            "coefficients; the papers use 32 and 64).", low=1, high=1024)
+    texel_samples: int = knob(1, "Rays per texel side S (S×S visibility rays per texel, "
+                                 "area-element weighted); 1 = one ray through the texel centre.",
+                              low=1, high=16)
+    keep: float = knob(0.25, "Transport coefficients kept per vertex: a fraction in (0, 1] of "
+                             "the 6·N², or an integer count > 1 (largest magnitudes; exact zeros "
+                             "are never stored).", low=1e-9, high=6 * 1024**2)
+    light_terms: int = knob(100, "k: lighting wavelet coefficients used per frame (non-linear "
+                                 "approximation; at most 6·N²).", low=1, high=6 * 1024**2)
+    selection: str = knob("area", "How the k lighting terms are chosen each frame: largest "
+                                  "magnitude, area-weighted magnitude (Ng 2003) or "
+                                  "transport-weighted magnitude (× mean |T| over vertices).",
+                          choices=SELECTIONS)
+    storage: str = knob("float16", "Stored transport value type (int8 uses a per-vertex scale).",
+                        choices=STORAGES)
+    visibility: bool = knob(True, "Trace occlusion. False: unshadowed transport (V = 1), the "
+                                  "trivial image the regression gate must beat.")
+
+
+def _check_config(scene, config: WaveletVertexConfig) -> tuple[int, int]:
+    """(coefficients per vertex, kept per vertex); one-line errors for bad values."""
+    return check_wavelet_config("wavelet-vertex", config, points=scene.n_vertices,
+                                what="vertices")
+
+
+@register_method("wavelet-vertex")
+class WaveletVertex(Method):
+    """Ng 2003 Haar-wavelet transport at vertices, relit with k selected lighting terms."""
+
+    Config = WaveletVertexConfig
+    precompute_version = "1"
+    main_knobs = ("light_terms", "cubemap")
+    summary = "Ng 2003 all-frequency Haar-wavelet transport at vertices, k lighting terms per frame"
+    paper = ("Ng, Ramamoorthi and Hanrahan 2003, All-Frequency Shadows Using Non-linear Wavelet "
+             "Lighting Approximation (SIGGRAPH 2003): diffuse vertex transport, cubemap Haar, "
+             "k-term lighting")
+    profile_overrides = {
+        "smoke": {"cubemap": 16, "light_terms": 64},
+        "quick": {"cubemap": 32},
+        "paper": {"cubemap": 64, "texel_samples": 2},
+    }
+    #: As ``vertex``: a sun's sharp shadows on a 32×32 ground make shadowing the measured
+    #: difference from the unshadowed render.
+    regression_case = {"scene": "plants", "variant": "diffuse", "light": "sun",
+                       "scene_params": {"ground_subdivisions": 32}}
+
+    @classmethod
+    def validate(cls, scene, config: WaveletVertexConfig) -> None:
+        for obj in scene.objects:
+            if obj.material.is_glossy:
+                raise InvalidInputError(
+                    f"method 'wavelet-vertex' renders diffuse materials only, but scene "
+                    f"'{scene.name}' variant '{scene.variant}' has glossy '{obj.name}'; use "
+                    "--variant diffuse")
+            if obj.material.is_textured:
+                raise InvalidInputError(
+                    f"method 'wavelet-vertex' takes constant kd per object; '{obj.name}' in "
+                    f"scene '{scene.name}' is textured")
+        _check_config(scene, config)
+
+    @classmethod
+    def precompute(cls, scene, config: WaveletVertexConfig, *, progress: bool = True) -> Artifact:
+        from prtbench.cache import cached_arrays, content_key
+        from prtbench.wavelet.transport import TRANSPORT_VERSION, compute_wavelet_transport
+
+        cls.validate(scene, config)  # also when called directly, before any ray
+        m, kept = _check_config(scene, config)
+        positions, normals, _, _ = scene.merged()
+
+        def compute() -> dict[str, np.ndarray]:
+            transport, stats = compute_wavelet_transport(
+                scene, positions, normals, n=config.cubemap, keep=config.keep,
+                texel_samples=config.texel_samples, storage=config.storage,
+                visibility=config.visibility, progress=progress)
+            return {**transport.arrays(), "rays": np.array(stats["rays"]),
+                    "trace_s": np.array(stats["trace_s"])}
+
+        # Keyed by the precompute knobs only: changing light_terms or selection (render-time
+        # knobs) reuses the transport, credited at its recorded compute time.
+        key = content_key("wavelet-vertex-transport", TRANSPORT_VERSION, scene.content_hash(),
+                          config.cubemap, kept, config.texel_samples, config.storage,
+                          bool(config.visibility))
+        arrays = cached_arrays("wavelet-transport", key, compute)
+        rays, trace_s = int(arrays.pop("rays")), float(arrays.pop("trace_s"))
+        transport = SparseTransport.from_arrays(arrays)
+        dense = len(positions) * m * 4  # the float32 matrix this replaces
+        return Artifact("wavelet-vertex", transport.arrays(),
+                        {"vertices": int(len(positions)), "coefficients": m,
+                         "kept_per_vertex": kept, "stored_entries": transport.nnz,
+                         "stored_bytes": transport.nbytes, "dense_float32_bytes": dense,
+                         "rays": rays, "trace_s": trace_s})
+
+    @classmethod
+    def renderer(cls, scene, artifact: Artifact, config: WaveletVertexConfig, *, width: int,
+                 height: int) -> "WaveletVertexRenderer":
+        return WaveletVertexRenderer(scene, artifact, config, width=width, height=height)
+
+
+class WaveletVertexRenderer(RasterRenderer):
+    """CPU k-term sparse relighting per vertex, rasterised with per-vertex radiance."""
+
+    def __init__(self, scene, artifact: Artifact, config: WaveletVertexConfig, *, width: int,
+                 height: int):
+        self.config = config
+        self.transport = SparseTransport.from_arrays(artifact.arrays)
+        super().__init__(scene, width=width, height=height, vertex_shader="wavelet_vertex.vert",
+                         fragment_shader="vertex_prt.frag", defines={})
+        self.relight = Relighter(self.transport, config)
+        self.weights = self.relight.weights
+        self.incident = self.ctx.buffer(reserve=12 * self.transport.n_points)
+        self._resident = [self.incident]
+
+    @property
+    def last_terms(self) -> np.ndarray | None:
+        """Lighting terms selected in the last frame (inspection and tests)."""
+        return self.relight.last_terms
+
+    def _bind(self, view, light) -> None:
+        self.incident.write(np.ascontiguousarray(self.relight(light)).tobytes())
+        self.incident.bind_to_storage_buffer(0)
+
+    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
+        """Host clock around whole frames (CPU relighting + upload + draw + glFinish)."""
+        self.relight.light_cube(light)  # per light, outside the frame
+        return host_frame_times(self.ctx, lambda: self._draw(view, light), warmup=warmup,
+                                frames=frames, renderer=self.renderer_string)
+
+    def memory_bytes(self) -> int:
+        """Sparse transport + selection weights + the per-vertex radiance buffer."""
+        return int(self.relight.nbytes + self.incident.size)

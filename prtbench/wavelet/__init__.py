@@ -1,0 +1,29 @@
+"""All-frequency lighting on cubemaps: the cube, the Haar transform and non-linear selection.
+
+DESIGN.md §17. Three nouns, one module each:
+
+* :mod:`~prtbench.wavelet.cubemap`: 6×N×N cubemaps (face/axis convention, exact texel solid
+  angles, direction ↔ texel, lat-long lights resampled by integration over each texel);
+* :mod:`~prtbench.wavelet.haar`: the orthonormal non-standard 2-D Haar transform per face,
+  vectorised over many signals;
+* :mod:`~prtbench.wavelet.selection`: the k largest lighting coefficients per frame (by
+  magnitude, area-weighted magnitude or transport-weighted magnitude).
+
+**Where the solid-angle weights live** (one convention for every wavelet method): in the
+*transport*. A cubemap light is its texel-mean radiance ``L_t`` (no weights); a transport
+cubemap is ``T_t = ∫_texel V(ω) max(n·ω, 0) dω`` (the texel's solid angle folded in). Then
+``Σ_t L_t T_t`` is the cubemap integral of ``L·V·cos``, and since the Haar transform is
+orthonormal it equals ``Σ_i L̂_i T̂_i`` over all coefficients; keeping fewer terms truncates
+that sum.
+
+This package imports only numpy at module level (``prtbench list`` stays instant).
+"""
+
+from .cubemap import (FACE_FRAMES, FACE_NAMES, cubemap_lookup, directions_to_texels,
+                      from_lat_long, texel_directions, texel_solid_angles)
+from .haar import forward, inverse, support_solid_angles
+from .selection import SELECTION_RULES, select_terms
+
+__all__ = ["FACE_FRAMES", "FACE_NAMES", "SELECTION_RULES", "cubemap_lookup",
+           "directions_to_texels", "forward", "from_lat_long", "inverse", "select_terms",
+           "support_solid_angles", "texel_directions", "texel_solid_angles"]

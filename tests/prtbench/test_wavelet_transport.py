@@ -1,0 +1,110 @@
+"""Wavelet transport of points (rays on a cubemap, Haar, truncation) and its sparse storage."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from prtbench.errors import InvalidInputError
+from prtbench.scene import get_scene
+from prtbench.wavelet import cubemap, haar
+from prtbench.wavelet.sparse import SparseTransport
+from prtbench.wavelet.transport import compute_wavelet_transport, keep_count
+
+
+def _texel_transport(transport: SparseTransport, n: int) -> np.ndarray:
+    """(P, 6, N, N) texel-domain transport (inverse Haar of the dense rows)."""
+    return haar.inverse(transport.dense().reshape(-1, 6, n, n))
+
+
+def test_unoccluded_transport_is_solid_angle_times_cosine():
+    scene = get_scene("plane")
+    n = 16
+    normal = np.array([0.6, 0.8, 0.0])
+    transport, stats = compute_wavelet_transport(scene, np.zeros((1, 3)), normal[None], n=n,
+                                                 texel_samples=4, visibility=False,
+                                                 progress=False)
+    assert stats["rays"] == 0
+    t = _texel_transport(transport, n)[0]
+    assert abs(t.sum() - math.pi) < 2e-3 * math.pi  # ∫ max(n·ω, 0) dω = π
+    cos = cubemap.texel_directions(n) @ normal
+    # Independent check of a few texels cut by nothing: adaptive quadrature of the cosine over
+    # the texel's face rectangle with the area element da db / (1 + a² + b²)^{3/2}.
+    from scipy.integrate import dblquad
+
+    frames = cubemap.FACE_FRAMES
+    for f, i, j in [(0, 8, 8), (0, 2, 13), (2, 5, 11), (2, 15, 0), (4, 7, 15), (1, 3, 3)]:
+        if cos[f, i, j] <= 4.0 / n:
+            continue
+        def integrand(b, a, f=f):
+            d = a * frames[f, 0] + b * frames[f, 1] + frames[f, 2]
+            return max(float(d @ normal), 0.0) / float(d @ d) ** 2  # cos/r · 1/r³
+        a0, b0 = 2.0 * j / n - 1.0, 2.0 * i / n - 1.0
+        exact, _ = dblquad(integrand, a0, a0 + 2.0 / n, b0, b0 + 2.0 / n, epsabs=1e-12)
+        assert abs(t[f, i, j] / exact - 1.0) < 2e-3, (f, i, j, t[f, i, j], exact)
+    assert np.all(np.abs(t[cos < -4.0 / n]) < 1e-7 * t.max())  # float32 storage rounding
+    # The lower hemisphere is exact zeros and is not stored.
+    assert transport.nnz < 0.75 * 6 * n * n
+
+
+def test_occluded_fraction_below_the_sphere_is_analytic():
+    # Cosine-weighted unoccluded fraction directly below a sphere of radius r at height h:
+    # 1 − (r/h)² (DESIGN.md §13).
+    scene = get_scene("sphere-over-plane", radius=0.5, height=1.0)
+    n = 32
+    transport, stats = compute_wavelet_transport(scene, np.zeros((1, 3)), np.array([[0, 1.0, 0]]),
+                                                 n=n, texel_samples=2, progress=False)
+    assert stats["rays"] > 0.45 * stats["candidate_rays"]
+    fraction = _texel_transport(transport, n)[0].sum() / math.pi
+    assert abs(fraction - 0.75) < 0.01, fraction
+
+
+def test_truncation_keeps_the_largest_coefficients_and_quantisation_error_is_bounded():
+    scene = get_scene("sphere-over-plane", plane_subdivisions=2)
+    positions, normals, _, _ = scene.merged()
+    pts, nrm = positions[::97], normals[::97]
+    n = 8
+    full, _ = compute_wavelet_transport(scene, pts, nrm, n=n, keep=1.0, progress=False)
+    dense = full.dense()
+    k = 40
+    kept, _ = compute_wavelet_transport(scene, pts, nrm, n=n, keep=k, progress=False)
+    d = kept.dense()
+    assert np.all((d != 0).sum(axis=1) <= k)
+    for row_full, row in zip(dense, d):
+        threshold = np.sort(np.abs(row_full))[-k]
+        assert np.all(np.abs(row_full[row != 0]) >= threshold)
+        assert np.array_equal(row[row != 0], row_full[row != 0])
+    half, _ = compute_wavelet_transport(scene, pts, nrm, n=n, storage="float16", progress=False)
+    assert np.all(np.abs(half.dense() - dense) <= np.abs(dense) * 2.0**-11 + 1e-7)
+    assert half.values.nbytes * 2 == full.values.nbytes
+    q, _ = compute_wavelet_transport(scene, pts, nrm, n=n, storage="int8", progress=False)
+    step = np.abs(dense).max(axis=1, keepdims=True) / 127.0
+    assert np.all(np.abs(q.dense() - dense) <= 0.5 * step * (1 + 1e-5))
+    assert q.nbytes == (q.indptr.nbytes + q.rows.nbytes + q.nnz + 4 * len(pts))
+
+
+def test_relight_is_the_sparse_product_of_the_selected_columns():
+    rng = np.random.default_rng(0)
+    p, m = 50, 96
+    dense = rng.normal(size=(p, m)) * (rng.random((p, m)) < 0.3)
+    rows, cols = np.nonzero(dense)
+    sparse = SparseTransport.from_entries(rows, cols, dense[rows, cols], n_points=p, n_coeffs=m,
+                                          storage="float32")
+    assert sparse.rows.dtype == np.uint16 and sparse.nnz == len(rows)
+    assert sparse.nbytes == (m + 1) * 8 + sparse.nnz * (2 + 4)
+    light = rng.normal(size=(m, 3))
+    terms = np.array([0, 5, 17, 40, 95])
+    expected = dense[:, terms] @ light[terms]
+    assert np.allclose(sparse.relight(light, terms), expected, rtol=1e-5, atol=1e-5)
+    assert np.allclose(sparse.relight(light, np.arange(m)), dense @ light, rtol=1e-5, atol=1e-5)
+    assert np.allclose(sparse.column_mean_abs(), np.abs(dense).mean(axis=0), rtol=1e-6)
+
+
+def test_keep_fraction_or_count():
+    assert keep_count(1.0, 6144) == 6144 and keep_count(0.25, 6144) == 1536
+    assert keep_count(64, 6144) == 64 and keep_count(1e-9, 6144) == 1
+    for bad in (0, -1, 6145, 2.5):
+        with pytest.raises(InvalidInputError, match="keep="):
+            keep_count(bad, 6144)
