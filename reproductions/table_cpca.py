@@ -123,7 +123,10 @@ class CpcaTable(Reproduction):
         "resident bytes add the per-frame projection table (what memory_bytes reports). Ratio: "
         "uncompressed float32 transfer bytes / form bytes.",
         "Transfer RMSE: of the stored float32 form against the uncompressed transfer over every "
-        "vertex and coefficient (relative: divided by the transfer's RMS).",
+        "vertex and coefficient (relative: divided by the transfer's RMS). It weighs all n⁴ "
+        "matrix entries alike, whatever light and view they meet, so two forms can rank "
+        "differently by RMSE and by image PSNR; masked PSNR also saturates at the uncompressed "
+        "row's value (its SH and vertex-sampling error).",
         "Frame times on llvmpipe (a CPU rasteriser) are host-clock medians: only meaningful as "
         "ratios within this table. Precompute time includes the (shared, cached) transfer "
         "precompute at its recorded cost plus this form's fit.",
