@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from prtbench.compress import knobs as compress_knobs
 from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
@@ -34,6 +35,14 @@ class VertexConfig:
     visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
                                   "(V = 1, and no interreflection since no ray hits anything), the "
                                   "trivial image the regression gate must beat.")
+    compress: str = compress_knobs.compress_knob()
+    clusters: int | None = compress_knobs.clusters_knob()
+    pca_vectors: int | None = compress_knobs.pca_vectors_knob()
+
+
+def transfer_dimension(config: VertexConfig) -> int:
+    """Floats of one vertex's transfer: n², or 3n² (RGB) with interreflection bounces."""
+    return config.sh_bands**2 * (3 if config.bounces > 0 and config.visibility else 1)
 
 
 @register_method("vertex")
@@ -60,7 +69,19 @@ class VertexPRT(Method):
                        "scene_params": {"ground_subdivisions": 32}}
 
     @classmethod
+    def cache_identity(cls, config: VertexConfig) -> dict[str, Any]:
+        return compress_knobs.cache_identity(super().cache_identity(config))
+
+    @classmethod
     def validate(cls, scene, config: VertexConfig) -> None:
+        form = compress_knobs.resolve(config)
+        if form is not None:
+            from prtbench.compress import check_request
+            from prtbench.config import memory_budget
+
+            check_request(n_signals=scene.n_vertices, dimension=transfer_dimension(config),
+                          clusters=form.clusters, pca_vectors=form.pca_vectors,
+                          max_bytes=memory_budget(), what=f"vertices of scene '{scene.name}'")
         for obj in scene.objects:
             if obj.material.is_glossy:
                 raise InvalidInputError(
@@ -84,13 +105,21 @@ class VertexPRT(Method):
                 scene, positions, normals, vertex_transfer=transfer, bounces=config.bounces,
                 rays_per_point=config.rays_per_point, seed=config.seed + 1, progress=progress)
         transfer = np.asarray(transfer, dtype=np.float32)
-        return Artifact("vertex", {"transfer": transfer},
-                        {"vertices": int(len(positions)), "sh_bands": config.sh_bands,
-                         "channels": 1 if transfer.ndim == 2 else 3})
+        meta = {"vertices": int(len(positions)), "sh_bands": config.sh_bands,
+                "channels": 1 if transfer.ndim == 2 else 3}
+        form = compress_knobs.resolve(config)
+        if form is None:
+            return Artifact("vertex", {"transfer": transfer}, meta)
+        # Only the compressed form is cached (the transfer itself is cached by its own step).
+        arrays, fit = compress_knobs.compress_signals(transfer.reshape(len(transfer), -1), form,
+                                                      seed=config.seed, progress=progress)
+        return Artifact("vertex", arrays, {**meta, **fit})
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: VertexConfig, *, width: int,
                  height: int) -> "VertexRenderer":
+        if compress_knobs.is_compressed(artifact.arrays):
+            return CompressedVertexRenderer(scene, artifact, config, width=width, height=height)
         return VertexRenderer(scene, artifact, config, width=width, height=height)
 
     @classmethod
@@ -104,7 +133,16 @@ class VertexPRT(Method):
         channels = 3 if config.bounces > 0 else 1
         per_vertex = {"madds": 3.0 * coeffs + 3.0, "fetches": float(coeffs * channels),
                       "bytes": 4.0 * coeffs * channels}
-        return add_counts(
+        form = compress_knobs.resolve(config)
+        frame = {}
+        if form is not None:
+            # cpca.glsl: an id, n′ weights and 1 + n′ RGB table entries per vertex; the CPU
+            # projects the light onto K·(1 + n′) rows of d floats per frame.
+            n, k = form.pca_vectors, form.clusters
+            fetches = float((k > 1) + n + 3 * (1 + n))
+            per_vertex = {"madds": 3.0 * n + 3.0, "fetches": fetches, "bytes": 4.0 * fetches}
+            frame = {"madds": 3.0 * k * (1 + n) * transfer_dimension(config)}
+        return add_counts(frame,
             raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                           pixels=covered_pixels, varyings=3, vertex_bytes=24),
             {key: value * scene_vertices for key, value in per_vertex.items()})
@@ -132,3 +170,43 @@ class VertexRenderer(RasterRenderer):
 
     def memory_bytes(self) -> int:
         return self._resident_bytes
+
+
+class CompressedVertexRenderer(RasterRenderer):
+    """Vertex PRT from a PCA / VQ / CPCA form (Sloan 2003): per frame the CPU projects the
+    light's SH onto each cluster's mean and basis; the vertex shader (vertex_prt.vert with
+    cpca.glsl) adds the n′ weighted table entries of its cluster. Resident: cluster ids,
+    weights and the K × (1 + n′) RGB table on the GPU, means and bases on the CPU."""
+
+    def __init__(self, scene, artifact: Artifact, config: VertexConfig, *, width: int,
+                 height: int):
+        from prtbench.compress.buffers import CpcaBuffers
+
+        self.model = compress_knobs.load_model(artifact.arrays, n_signals=scene.n_vertices)
+        self.sh_bands = config.sh_bands
+        self.channels = transfer_dimension(config) // config.sh_bands**2
+        if self.model.dimension != transfer_dimension(config):
+            raise InvalidInputError(f"compressed transfer of dimension {self.model.dimension}; "
+                                    f"expected {transfer_dimension(config)} for sh_bands="
+                                    f"{config.sh_bands}, bounces={config.bounces}")
+        super().__init__(scene, width=width, height=height, vertex_shader="vertex_prt.vert",
+                         fragment_shader="vertex_prt.frag",
+                         defines={"SH_COEFFS": config.sh_bands**2,
+                                  "TRANSFER_CHANNELS": self.channels, "CPCA_CLUSTERS":
+                                  self.model.n_clusters, "PCA_VECTORS": self.model.pca_vectors,
+                                  "CPCA_OUTPUTS": 1})
+        self.cpca = CpcaBuffers(self.ctx, self.model, outputs=1)
+        self._resident = self.cpca.buffers()
+
+    def light_operator(self, light):
+        """rows (M, d) -> (M, 3): Σ_i T_i L_i (mono) or Σ_i T_ic L_ic (RGB transfer)."""
+        coeffs = light.sh(self.sh_bands).astype(np.float64)  # (n², 3)
+        if self.channels == 1:
+            return coeffs
+        return lambda rows: np.einsum("mic,ic->mc", rows.reshape(len(rows), -1, 3), coeffs)
+
+    def _bind(self, view, light) -> None:
+        self.cpca.bind(self.light_operator(light))
+
+    def memory_bytes(self) -> int:
+        return self.cpca.memory_bytes()

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prtbench.compress import knobs as compress_knobs
 from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
@@ -62,10 +63,14 @@ class SloanMatrixConfig:
     rays_per_point: int = knob(512, "Visibility rays per vertex (cosine-weighted, stratified).",
                                low=1, high=1 << 20)
     seed: int = seed_knob("Seed of the per-vertex random rotations of the ray pattern.")
-    max_bytes: int = knob(2 << 30, "Largest transfer-matrix buffer accepted (V · n⁴ · 4 bytes).",
+    max_bytes: int = knob(2 << 30, "Largest transfer-matrix buffer accepted (V · n⁴ · 4 bytes; "
+                                   "with compress, the compressed form's stored bytes).",
                           low=1, high=1 << 40)
     visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
                                   "(V = 1), the trivial image the regression gate must beat.")
+    compress: str = compress_knobs.compress_knob()
+    clusters: int | None = compress_knobs.clusters_knob()
+    pca_vectors: int | None = compress_knobs.pca_vectors_knob()
 
 
 def _validate_materials(method: str, scene) -> None:
@@ -202,6 +207,9 @@ class _GlossyVertexMethod(Method):
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config, *, width: int,
                  height: int) -> "GlossyVertexRenderer":
+        if compress_knobs.is_compressed(artifact.arrays):
+            return CompressedMatrixRenderer(scene, artifact, sh_bands=config.sh_bands,
+                                            width=width, height=height)
         return GlossyVertexRenderer(scene, artifact, mode=cls._mode, sh_bands=config.sh_bands,
                                     width=width, height=height)
 
@@ -215,7 +223,16 @@ class _GlossyVertexMethod(Method):
         from prtbench.tradeoff import cost
 
         n = config.sh_bands
-        if cls._mode == MODE_MATRIX:
+        form = compress_knobs.resolve(config) if cls._mode == MODE_MATRIX else None
+        cpu = {}
+        if form is not None:
+            # cpca.glsl: per vertex an id, n′ weights and (1 + n′)·n² RGB table entries, n′·n²
+            # RGB madds; per frame the CPU projects K·(1 + n′) matrices onto the light.
+            k, m = form.clusters, form.pca_vectors
+            fetches = float((k > 1) + m + 3 * (1 + m) * n * n)
+            product = {"madds": 3.0 * m * n * n, "fetches": fetches, "bytes": 4.0 * fetches}
+            cpu = {"madds": 3.0 * k * (1 + m) * n**4}
+        elif cls._mode == MODE_MATRIX:
             product = {"madds": 3.0 * n**4, "fetches": float(n**4), "bytes": 4.0 * n**4}
         else:
             loads = {"madds": 0.0, "fetches": float(n * n), "bytes": 4.0 * n * n}
@@ -225,7 +242,7 @@ class _GlossyVertexMethod(Method):
         shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
         per_vertex = cost.add_counts(product, shade)
         frame = {"bytes": cost.gamma_bytes(n) if cls._mode == MODE_TP else 0.0}
-        return cost.add_counts(
+        return cost.add_counts(cpu,
             cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=3, vertex_bytes=52),
             cost.scaled(per_vertex, scene_vertices), frame)
@@ -275,11 +292,31 @@ class SloanMatrix(_GlossyVertexMethod):
              "Rendering in Dynamic, Low-Frequency Lighting Environments (SIGGRAPH 2002): "
              "glossy transfer matrices")
     _mode = MODE_MATRIX
+    #: The CPCA form of the matrices (Sloan 2003) is regressed as ``sloan-matrix:cpca``.
+    regression_variants = {"cpca": {"compress": "cpca", "clusters": 16, "pca_vectors": 4}}
+
+    @classmethod
+    def cache_identity(cls, config: SloanMatrixConfig) -> dict:
+        return compress_knobs.cache_identity(super().cache_identity(config))
 
     @classmethod
     def validate(cls, scene, config: SloanMatrixConfig) -> None:
         super().validate(scene, config)
         size = matrix_bytes(scene.n_vertices, config.sh_bands)
+        form = compress_knobs.resolve(config)
+        if form is not None:
+            from prtbench.compress import check_request
+            from prtbench.config import check_memory
+
+            # The matrices are computed in host memory before they are compressed; only the
+            # compressed form is kept (and limited by max_bytes).
+            check_memory(f"method 'sloan-matrix' sh_bands={config.sh_bands} on "
+                         f"{scene.n_vertices} vertices (uncompressed matrices before compress)",
+                         2 * size, accepted="fewer sh_bands or a coarser mesh")
+            check_request(n_signals=scene.n_vertices, dimension=config.sh_bands**4,
+                          clusters=form.clusters, pca_vectors=form.pca_vectors,
+                          max_bytes=config.max_bytes, what=f"vertices of scene '{scene.name}'")
+            return
         if size > config.max_bytes:
             # The limit is stated in vertices (what the buffer grows with); the scene's
             # triangles are named too, since that is the count an asset tool shows.
@@ -297,12 +334,28 @@ class SloanMatrix(_GlossyVertexMethod):
     @classmethod
     def precompute(cls, scene, config: SloanMatrixConfig, *, progress: bool = True) -> Artifact:
         positions, normals, _, _ = scene.merged()
-        matrices = compute_transfer_matrices(scene, positions, normals, bands=config.sh_bands,
-                                             rays_per_point=config.rays_per_point,
-                                             seed=config.seed, progress=progress,
-                                             visibility=config.visibility)
-        return Artifact(cls.name, {"matrices": matrices},
-                        {"vertices": int(len(matrices)), "sh_bands": config.sh_bands})
+        form = compress_knobs.resolve(config)
+        meta = {"vertices": int(len(positions)), "sh_bands": config.sh_bands}
+
+        def compute() -> dict[str, np.ndarray]:
+            return {"matrices": compute_transfer_matrices(
+                scene, positions, normals, bands=config.sh_bands,
+                rays_per_point=config.rays_per_point, seed=config.seed, progress=progress,
+                visibility=config.visibility)}
+
+        if form is None:
+            return Artifact(cls.name, compute(), meta)
+        # Compressed forms share one cached matrix precompute (credited to their precompute
+        # time), and only the compressed form is stored in the artifact.
+        from prtbench.cache import cached_arrays, content_key
+
+        key = content_key("sloan-matrices", cls.precompute_version, scene.content_hash(),
+                          config.sh_bands, config.rays_per_point, config.seed, config.visibility)
+        matrices = cached_arrays("transfer-matrices", key, compute)["matrices"]
+        arrays, fit = compress_knobs.compress_signals(
+            matrices.reshape(len(matrices), -1), form, seed=config.seed,
+            max_bytes=config.max_bytes, progress=progress)
+        return Artifact(cls.name, arrays, {**meta, **fit})
 
 
 # --- renderer ---------------------------------------------------------------------------------
@@ -363,3 +416,45 @@ class GlossyVertexRenderer(RasterRenderer):
     def release(self) -> None:
         super().release()
         self.triple.release()
+
+
+class CompressedMatrixRenderer(RasterRenderer):
+    """``sloan-matrix`` from a PCA / VQ / CPCA form of the flattened n² × n² matrices (the
+    lecture's CPCA for changing view, Sloan 2003).
+
+    Per frame the CPU projects the light's SH onto every cluster's mean and basis matrices,
+    P_kj = M_kj · L (n² RGB vectors each); the vertex shader (vertex_glossy.vert, GLOSSY_MODE 2
+    with cpca.glsl) forms H = P_c0 + Σ_j w_j P_cj and shades it like the uncompressed matrix.
+    Resident: cluster ids, weights and the K × (1 + n′) × n² RGB table on the GPU, means and
+    bases on the CPU (:class:`~prtbench.compress.buffers.CpcaBuffers`).
+    """
+
+    def __init__(self, scene, artifact: Artifact, *, sh_bands: int, width: int, height: int):
+        from prtbench.compress.buffers import CpcaBuffers
+
+        self.model = compress_knobs.load_model(artifact.arrays, n_signals=scene.n_vertices)
+        self.sh_bands = sh_bands
+        n2 = sh_bands * sh_bands
+        if self.model.dimension != n2 * n2:
+            raise InvalidInputError(f"compressed matrices of dimension {self.model.dimension}; "
+                                    f"expected {n2 * n2} for sh_bands={sh_bands}")
+        super().__init__(scene, width=width, height=height, vertex_shader="vertex_glossy.vert",
+                         fragment_shader="vertex_prt.frag",
+                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": MODE_MATRIX,
+                                  "CPCA_CLUSTERS": self.model.n_clusters,
+                                  "PCA_VECTORS": self.model.pca_vectors, "CPCA_OUTPUTS": n2},
+                         extra_attributes=material_attributes(scene))
+        self.cpca = CpcaBuffers(self.ctx, self.model, outputs=n2)
+        self._resident = self.cpca.buffers()
+
+    def light_operator(self, light):
+        """rows (M, n⁴) -> (M, n²·3): each row as a matrix M_ki times the light's L_i (RGB)."""
+        coeffs = light.sh(self.sh_bands).astype(np.float64)  # (n², 3)
+        n2 = self.sh_bands**2
+        return lambda rows: (rows.reshape(len(rows), n2, n2) @ coeffs).reshape(len(rows), -1)
+
+    def _bind(self, view, light) -> None:
+        self.cpca.bind(self.light_operator(light))
+
+    def memory_bytes(self) -> int:
+        return self.cpca.memory_bytes()

@@ -156,6 +156,13 @@ class Method(ABC):
         return config_mod.from_dict(cls.Config, values)
 
     @classmethod
+    def cache_identity(cls, config: Any) -> dict[str, Any]:
+        """The config as it enters the artifact's cache key: every knob by default. A method may
+        leave out knobs at a value that cannot change its artifact, so that adding a knob keeps
+        the existing cache entries valid (e.g. ``compress='none'``, prtbench.compress.knobs)."""
+        return config_mod.to_dict(config)
+
+    @classmethod
     def validate(cls, scene: "Scene", config: Any) -> None:
         """Raise a PrtbenchError if this method cannot handle ``scene`` with ``config``."""
 
@@ -220,8 +227,11 @@ def register_method(name: str):
 
 def artifact_key(method_cls: type[Method], scene: "Scene", config: Any) -> str:
     """Content hash of what a precompute depends on."""
+    # Duck-typed method classes (tests' stand-ins) need not derive from Method.
+    identity = getattr(method_cls, "cache_identity", None)
+    values = identity(config) if identity is not None else config_mod.to_dict(config)
     return content_key(method_cls.name, method_cls.precompute_version, scene.content_hash(),
-                       config_mod.to_dict(config))
+                       values)
 
 
 def load_or_precompute(method_cls: type[Method], scene: "Scene", config: Any, *,

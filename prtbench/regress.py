@@ -3,7 +3,9 @@
 Every registered method runs in the ``smoke`` profile on its regression case (by default
 ``plants`` diffuse under ``sky``, one view; a method's ``regression_case`` class attribute
 overrides scene, variant and light, and may add ``scene_params`` and config ``overrides``
-where the smoke profile alone is too small to beat the trivial images) and
+where the smoke profile alone is too small to beat the trivial images; its
+``regression_variants`` add further cases ``method:variant`` with their own config overrides,
+e.g. a compressed form of the method's transfer) and
 
 1. its masked metrics must beat every trivial image of the same reference by the margins of
    :mod:`prtbench.trivial` (the flat mean-colour image, the half-bright reference and, for
@@ -43,9 +45,48 @@ DEFAULT_CASE = {"scene": "plants", "variant": "diffuse", "light": "sky"}
 TOLERANCES = {"psnr_masked": 1.0, "ssim_masked": 0.03, "flip_masked": 0.02, "mae": 0.01}
 
 
-def regression_case(method_cls) -> dict[str, Any]:
-    """The scene/variant/light a method is regressed on."""
-    return {**DEFAULT_CASE, **getattr(method_cls, "regression_case", {})}
+def regression_case(method_cls, variant: str | None = None) -> dict[str, Any]:
+    """The scene/variant/light a method is regressed on.
+
+    ``variant`` names one of the method's ``regression_variants`` (config overrides regressed
+    as a case of their own, baseline key ``method:variant``, e.g. a compressed form).
+    """
+    case = {**DEFAULT_CASE, **getattr(method_cls, "regression_case", {})}
+    if variant is not None:
+        extra = getattr(method_cls, "regression_variants", {})[variant]
+        case["overrides"] = {**case.get("overrides", {}), **extra}
+    return case
+
+
+def case_names() -> list[str]:
+    """Every regression case: each method's name, then ``method:variant`` for its
+    ``regression_variants``."""
+    from .method import METHODS
+
+    names = []
+    for name in METHODS.names():
+        names.append(name)
+        names += [f"{name}:{v}" for v in getattr(METHODS.get(name), "regression_variants", {})]
+    return names
+
+
+def split_case(name: str) -> tuple[str, str | None]:
+    """(method, variant or None) of a case name; unknown names are UnknownNameErrors."""
+    from .errors import UnknownNameError
+    from .method import METHODS
+
+    method, sep, variant = name.partition(":")
+    METHODS.check(method)
+    if sep and variant not in getattr(METHODS.get(method), "regression_variants", {}):
+        raise UnknownNameError("regression case", name, case_names())
+    return method, (variant if sep else None)
+
+
+def _case_of(name: str) -> dict[str, Any]:
+    from .method import METHODS
+
+    method, variant = split_case(name)
+    return regression_case(METHODS.get(method), variant)
 
 
 @dataclass
@@ -86,10 +127,10 @@ def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **f
     e.g. a longer training) come first, then ``overrides`` (``--set``); ``fields`` replace
     request fields (e.g. ``store_results=True`` in a smoke test). Nothing is written by default.
     """
-    from .method import METHODS
     from .runner import RunRequest
 
-    case = regression_case(METHODS.get(method))
+    case = _case_of(method)  # a ``method:variant`` case runs the method with its overrides
+    method = split_case(method)[0]
     values = dict(method=method, scene=case["scene"], variant=case["variant"],
                   light=case["light"], profile="smoke", out_dir=None,
                   overrides={**case.get("overrides", {}), **(overrides or {})},
@@ -154,15 +195,14 @@ def gate(request, metrics: Mapping[str, float]) -> list[str]:
 
 
 def measure(method: str) -> Measurement:
-    """Run ``method`` on its regression case (smoke profile), with its trivial images."""
-    from .method import METHODS
+    """Run ``method`` (or a ``method:variant`` case) on its regression case (smoke profile),
+    with its trivial images."""
     from .runner import run
 
     request = case_request(method)
     summary = run(request, progress=False, echo=False)
     trivial, skipped = trivial_results(request)
-    return Measurement(regression_case(METHODS.get(method)), summary.mean_metrics(), trivial,
-                       skipped)
+    return Measurement(_case_of(method), summary.mean_metrics(), trivial, skipped)
 
 
 @contextmanager
@@ -305,7 +345,7 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
         Rewrite the baselines of ``methods`` (all by default) from this run; refused, writing
         nothing, if any of them fails the trivial-image gate.
     methods : sequence of str, optional
-        Method names (default: every registered method).
+        Method names or ``method:variant`` cases (default: every case, :func:`case_names`).
     baseline_path : Path, optional
         Default :data:`DEFAULT_BASELINES`.
     cache : Path, optional
@@ -316,16 +356,14 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
     bool
         True if every method passes the gate and (when comparing) its baseline.
     """
-    from .method import METHODS
-
     path = Path(baseline_path or DEFAULT_BASELINES)
     baselines = load_baselines(path, required=not update)
     if cache is not None and Path(cache).exists() and not Path(cache).is_dir():
         raise InvalidInputError(f"--cache '{cache}' is a file; accepted: a folder (created if "
                                 "missing)")
-    names = list(methods) if methods else METHODS.names()
+    names = list(methods) if methods else case_names()
     for name in names:
-        METHODS.check(name)
+        split_case(name)
     ok = True
     refused: list[str] = []
     checked: dict[str, dict[str, tuple[float, float]]] = {}
@@ -336,7 +374,7 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
                       f"{name}`)")
                 ok = False
                 continue
-            specs, problems = check_entry(baselines[name], regression_case(METHODS.get(name)))
+            specs, problems = check_entry(baselines[name], _case_of(name))
             for line in problems:
                 print(f"{name}: FAIL {line}")
             ok &= not problems

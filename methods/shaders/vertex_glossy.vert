@@ -9,7 +9,12 @@
 // Binding 0: per-vertex data, vertex-major float32: T (V, n²) for modes 0/1, M (V, n², n²) for 2.
 #include "prt_shading.glsl"
 
+#ifdef CPCA_OUTPUTS
+// Compressed matrices (sloan-matrix compress=pca/vq/cpca): H from cpca.glsl.
+#include "cpca.glsl"
+#else
 layout(std430, binding = 0) readonly buffer VertexTransfer { float vertex_transfer[]; };
+#endif
 
 uniform mat4 clip_from_world;
 uniform vec3 eye;
@@ -25,7 +30,12 @@ out vec3 radiance;
 
 void main() {
     vec3 H[SH_COEFFS];
-#if GLOSSY_MODE == 2
+#if GLOSSY_MODE == 2 && defined(CPCA_OUTPUTS)
+    int cluster = cpca_cluster_of(gl_VertexID);
+    for (int k = 0; k < SH_COEFFS; ++k) {
+        H[k] = cpca_output(gl_VertexID, cluster, k);
+    }
+#elif GLOSSY_MODE == 2
     int base = gl_VertexID * SH_COEFFS * SH_COEFFS;
     for (int k = 0; k < SH_COEFFS; ++k) {
         vec3 sum = vec3(0.0);
