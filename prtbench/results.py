@@ -414,7 +414,9 @@ def git_sha(cwd: str | Path | None = None) -> str:
     """The commit of the source tree, ``+dirty`` if tracked files changed; ``unknown`` outside git.
 
     ``cwd`` defaults to this package's folder, so results record the code that produced them
-    wherever the command runs. Untracked files do not count (like ``git describe --dirty``).
+    wherever the command runs. Untracked files do not count (like ``git describe --dirty``),
+    nor do the generated reports under ``reports/``: a table written by one command must not
+    mark the next command's rows as measured on modified code.
     """
     cwd = Path(cwd) if cwd is not None else Path(__file__).resolve().parent
 
@@ -428,7 +430,8 @@ def git_sha(cwd: str | Path | None = None) -> str:
     sha = git("rev-parse", "HEAD")
     if not sha:
         return "unknown"
-    status = git("status", "--porcelain", "--untracked-files=no")
+    status = git("status", "--porcelain", "--untracked-files=no", "--", ":(top)",
+                 ":(top,exclude)reports")
     return f"{sha}+dirty" if status else sha
 
 

@@ -170,13 +170,21 @@ def test_git_sha(tmp_path):
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-c", "commit.gpgsign=false"]
     subprocess.run([*git, "init", "-q"], cwd=tmp_path, check=True)
     (tmp_path / "f.txt").write_text("one")
-    subprocess.run([*git, "add", "f.txt"], cwd=tmp_path, check=True)
+    (tmp_path / "reports").mkdir()
+    (tmp_path / "reports" / "table-x.md").write_text("old table")
+    (tmp_path / "pkg").mkdir()
+    subprocess.run([*git, "add", "f.txt", "reports"], cwd=tmp_path, check=True)
     subprocess.run([*git, "commit", "-q", "-m", "c"], cwd=tmp_path, check=True)
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=tmp_path, capture_output=True,
                           text=True, check=True).stdout.strip()
     (tmp_path / "untracked.txt").write_text("x")
     assert results.git_sha(tmp_path) == head
+    # A regenerated report is an output, not a code change (asked from a subfolder, as the
+    # package asks from its own folder).
+    (tmp_path / "reports" / "table-x.md").write_text("new table")
+    assert results.git_sha(tmp_path / "pkg") == head
     (tmp_path / "f.txt").write_text("two")
+    assert results.git_sha(tmp_path / "pkg") == head + "+dirty"
     assert results.git_sha(tmp_path) == head + "+dirty"
 
 
