@@ -42,6 +42,7 @@ from prtbench.method import Artifact, Method, register_method
 from prtbench.sh import clamped_cosine_zonal, eval_sh, tpfl_matrix
 
 from . import SHADER_DIR
+from ._materials import check_diffuse_constant_kd
 from ._raster import RasterRenderer, clip_planes
 
 #: Rays per embree call while tracing probes (bounds the temporary arrays to ~100 MB).
@@ -220,16 +221,9 @@ class IrradianceVolume(Method):
 
     @classmethod
     def validate(cls, scene, config: IrradianceVolumeConfig) -> None:
-        for obj in scene.objects:
-            if obj.material.is_glossy:
-                raise InvalidInputError(
-                    f"method 'irradiance-volume' stores irradiance and renders diffuse materials "
-                    f"only, but scene '{scene.name}' variant '{scene.variant}' has glossy "
-                    f"'{obj.name}'; use --variant diffuse")
-            if obj.material.is_textured:
-                raise InvalidInputError(
-                    f"method 'irradiance-volume' takes constant kd per object; '{obj.name}' in "
-                    f"scene '{scene.name}' is textured")
+        check_diffuse_constant_kd(
+            "irradiance-volume", scene,
+            renders="stores irradiance and renders diffuse materials only")
 
     @classmethod
     def precompute(cls, scene, config: IrradianceVolumeConfig, *, progress: bool = True) -> Artifact:

@@ -19,6 +19,7 @@ from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
+from ._materials import check_diffuse_constant_kd
 from ._raster import RasterRenderer
 
 
@@ -82,15 +83,7 @@ class VertexPRT(Method):
             check_request(n_signals=scene.n_vertices, dimension=transfer_dimension(config),
                           clusters=form.clusters, pca_vectors=form.pca_vectors,
                           max_bytes=memory_budget(), what=f"vertices of scene '{scene.name}'")
-        for obj in scene.objects:
-            if obj.material.is_glossy:
-                raise InvalidInputError(
-                    f"method 'vertex' renders diffuse materials only, but scene '{scene.name}' "
-                    f"variant '{scene.variant}' has glossy '{obj.name}'; use --variant diffuse")
-            if obj.material.is_textured:
-                raise InvalidInputError(
-                    f"method 'vertex' takes constant kd per object; '{obj.name}' in scene "
-                    f"'{scene.name}' is textured")
+        check_diffuse_constant_kd("vertex", scene)
 
     @classmethod
     def precompute(cls, scene, config: VertexConfig, *, progress: bool = True) -> Artifact:

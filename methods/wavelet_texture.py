@@ -37,9 +37,9 @@ import numpy as np
 from prtbench.config import knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_method
-from prtbench.scene import Texture
 from prtbench.wavelet.sparse import SparseTransport
 
+from ._materials import check_diffuse_constant_kd
 from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_config,
                               host_frame_times)
 
@@ -149,18 +149,9 @@ class WaveletTexture(Method):
 
     @classmethod
     def validate(cls, scene, config: WaveletTextureConfig) -> None:
+        check_diffuse_constant_kd("wavelet-texture", scene, kd_only=True)  # normal maps are ours
         for obj in scene.objects:
-            material = obj.material
-            if material.is_glossy:
-                raise InvalidInputError(
-                    f"method 'wavelet-texture' renders diffuse materials only, but scene "
-                    f"'{scene.name}' variant '{scene.variant}' has glossy '{obj.name}'; use "
-                    "--variant diffuse")
-            if isinstance(material.kd, Texture):
-                raise InvalidInputError(
-                    f"method 'wavelet-texture' takes constant kd per object; '{obj.name}' in "
-                    f"scene '{scene.name}' is textured")
-            if material.normal_map is not None and obj.mesh.uvs is None:
+            if obj.material.normal_map is not None and obj.mesh.uvs is None:
                 raise InvalidInputError(f"object '{obj.name}' has a normal map but no mesh "
                                         "uvs; accepted: normal maps on meshes with uvs")
         if config.padding * 8 > config.texture_resolution:

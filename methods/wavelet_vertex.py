@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from prtbench.config import knob
-from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Method, register_method
 from prtbench.wavelet.sparse import SparseTransport
 
+from ._materials import check_diffuse_constant_kd
 from ._raster import RasterRenderer
 from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_config,
                               host_frame_times)
@@ -87,16 +87,7 @@ class WaveletVertex(Method):
 
     @classmethod
     def validate(cls, scene, config: WaveletVertexConfig) -> None:
-        for obj in scene.objects:
-            if obj.material.is_glossy:
-                raise InvalidInputError(
-                    f"method 'wavelet-vertex' renders diffuse materials only, but scene "
-                    f"'{scene.name}' variant '{scene.variant}' has glossy '{obj.name}'; use "
-                    "--variant diffuse")
-            if obj.material.is_textured:
-                raise InvalidInputError(
-                    f"method 'wavelet-vertex' takes constant kd per object; '{obj.name}' in "
-                    f"scene '{scene.name}' is textured")
+        check_diffuse_constant_kd("wavelet-vertex", scene)
         _check_config(scene, config)
 
     @classmethod

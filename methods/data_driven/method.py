@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from prtbench.config import check_memory, knob, seed_knob
-from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
 
+from .._materials import check_diffuse_constant_kd
 from .basis import LAYOUTS, Basis, encode, fit, to_examples
 from .families import FAMILIES, REGIONS
 from .measurement import PLACEMENTS
@@ -149,16 +149,7 @@ class DataDrivenPRT(Method):
 
     @classmethod
     def validate(cls, scene, config: DataDrivenConfig) -> None:
-        for obj in scene.objects:
-            if obj.material.is_glossy:
-                raise InvalidInputError(
-                    f"method 'data-driven' renders diffuse materials only, but scene "
-                    f"'{scene.name}' variant '{scene.variant}' has glossy '{obj.name}'; "
-                    "use --variant diffuse")
-            if obj.material.is_textured:
-                raise InvalidInputError(
-                    f"method 'data-driven' takes constant kd per object; '{obj.name}' in scene "
-                    f"'{scene.name}' is textured")
+        check_diffuse_constant_kd("data-driven", scene)
         # The dataset's indirect part (N, T, 3) float32 and the basis fit's float64 copy of it
         # (36 B per configuration and texel), plus the basis textures (12 B per element).
         texels = config.lightmap_resolution ** 2

@@ -56,8 +56,6 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .. import scene_params as P
 from ..cache import content_key
 from ..errors import InvalidInputError
