@@ -15,13 +15,13 @@ site from there.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 
+from ..assets import sha256_of
 from ..cache import cache_root, content_key
 
 #: Exposure stops (EV relative to the scene's exposure) of the full-size display images.
@@ -36,14 +36,6 @@ _KIND = "site-images"
 def stop_name(ev: int) -> str:
     """``ev+0``, ``ev-2``: the stop's part of a file name."""
     return f"ev{int(ev):+d}"
-
-
-def _file_hash(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 class ImageMaker:
@@ -68,7 +60,7 @@ class ImageMaker:
     def source_hash(self, path: Path) -> str:
         """SHA-256 of a source EXR's bytes (computed once per build)."""
         if path not in self._hashes:
-            self._hashes[path] = _file_hash(path)
+            self._hashes[path] = sha256_of(path)
         return self._hashes[path]
 
     def _linear(self, path: Path) -> np.ndarray:
