@@ -272,6 +272,11 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Longest wait before ``sweep --timing-serial`` re-times, for the 1-min load average to drop
+#: the parallel phase's workers (a minute's decay takes the 2-worker load of ~3.5 below 2).
+RETIME_SETTLE_S = 90.0
+
+
 def _sweep(args: argparse.Namespace) -> int:
     from .config import parse_overrides
     from .tradeoff import grid
@@ -300,7 +305,8 @@ def _sweep(args: argparse.Namespace) -> int:
                         workers=args.workers, scheduler=args.scheduler, force=args.force,
                         progress=not args.quiet)
     retimed = (retime_serial(outcome, profile=sweep.profile, results_path=results,
-                             progress=not args.quiet) if args.timing_serial else [])
+                             progress=not args.quiet, settle_s=RETIME_SETTLE_S)
+               if args.timing_serial else [])
     failed = outcome.failed + [c for c in retimed if c.status == "failed"]
     for cell, reason in sweep.dropped:  # after the run: a user error stays one line
         print(f"prtbench: sweep: left out {cell.method} {cell.scene} {dict(cell.label)}: {reason}",

@@ -97,6 +97,8 @@ class Point:
     devices: list[str] = field(default_factory=list)
     renderers: list[str] = field(default_factory=list)
     git_shas: list[str] = field(default_factory=list)
+    #: 1-min load averages stored with the timed rows (the machine's state while measuring).
+    loads: list[float] = field(default_factory=list)
     note: str = ""
     dominated: bool | None = None
     #: Mean ``madds``, ``fetches``, ``bytes`` of the ops model over the rows (empty if unknown),
@@ -195,7 +197,9 @@ def collect_points(rows: Iterable, *, error: str, cost: str) -> tuple[list[Point
             timing_workers=sorted({r.workers for r in timed}),
             devices=sorted({r.device for r in timed if r.device}),
             renderers=sorted({r.renderer for r in timed if r.renderer}),
-            git_shas=sorted({r.git_sha for r in group if r.git_sha}), note=note,
+            git_shas=sorted({r.git_sha for r in group if r.git_sha}),
+            loads=[float(r.load_average) for r in timed
+                   if r.load_average is not None and math.isfinite(r.load_average)], note=note,
             ops_counts=ops_counts))
     return points, skipped
 

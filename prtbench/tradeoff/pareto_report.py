@@ -111,6 +111,20 @@ def _correlation_lines(result: ParetoResult) -> list[str]:
     return lines or ["ops model vs measured frame_ms: no timed rows"]
 
 
+def _load_note(points, cost: str) -> str:
+    """The load range of the timed rows (reproduction.load_note's wording); '' if none."""
+    if cost != "frame_ms":
+        return ""
+    import pandas as pd
+
+    from ..reproduction import load_note
+
+    frame = pd.DataFrame({"load_average": [v for p in points for v in p.loads],
+                          "device": [d for p in points for _ in p.loads
+                                     for d in (p.devices[:1] or [None])]})
+    return load_note([frame])
+
+
 def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str) -> str:
     """The report: provenance, how error and cost are defined, the model check, each front."""
     from ..results import git_sha
@@ -128,7 +142,8 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
         f"--error {error} --cost {cost} --profile {result.profile}` from `{results_path}` "
         f"(read-only) with prtbench {git_sha()}.", "",
         f"- Profile: {result.profile}. Rows measured by code version(s): {', '.join(shas) or 'unknown'}.",
-        f"- Renderer(s): {'; '.join(renderers) or 'unknown'}. Device(s): {'; '.join(devices) or 'unknown'}.",
+        f"- Renderer(s): {'; '.join(renderers) or 'unknown'}. Device(s): {'; '.join(devices) or 'unknown'}."
+        + _load_note(points, cost),
         f"- Error: {ERROR_LABELS[error]} against the path-traced reference, mean over a "
         f"configuration's views ({better} is better).",
     ]

@@ -299,20 +299,47 @@ def _run_dask(client, todo, profile: str, n_workers: int, finish, bar: _Progress
         bar.update(running=min(n_workers, pending), finished=status)
 
 
+def settle_load(*, target: float, max_wait_s: float, poll_s: float = 2.0,
+                progress: bool = True) -> float:
+    """Wait (at most ``max_wait_s``) for the 1-minute load average to fall to ``target``.
+
+    The load average lags the machine by about a minute: right after the parallel phase of a
+    sweep it still reads the workers' load, and every row stores it (``load_average``), so the
+    first serially timed cells would be flagged busy for load that has already gone. Returns
+    the load average it stopped at.
+    """
+    start = time.monotonic()
+    load = os.getloadavg()[0]
+    shown = False
+    while load > target and time.monotonic() - start < max_wait_s:
+        if progress and not shown:
+            print(f"timing (serial): waiting up to {max_wait_s:.0f} s for the 1-min load average "
+                  f"({load:.2f}) to settle to {target:.2f}", file=sys.stderr, flush=True)
+            shown = True
+        time.sleep(poll_s)
+        load = os.getloadavg()[0]
+    return load
+
+
 def retime_serial(outcome: SweepOutcome, *, profile: str, results_path: Path | None = None,
-                  progress: bool = True) -> list[CellOutcome]:
+                  progress: bool = True, settle_s: float = 0.0) -> list[CellOutcome]:
     """Re-run, one at a time in this process, each finished cell without a ``workers = 1`` row.
 
     Appends the new rows (``workers = 1``, same ``cell_key``): frame times measured with the
-    machine to itself. Returns the outcomes of the re-runs (failures included).
+    machine to itself. Returns the outcomes of the re-runs (failures included). ``settle_s``
+    > 0 first waits that long at most for the load of the parallel phase to leave the
+    1-minute load average (:func:`settle_load`, to the core count).
     """
     from tqdm import tqdm
 
     from ..results import ResultsStore
+    from .cluster import cores
 
     stored = _stored_keys(results_path, profile)
     todo = [c for c in outcome.cells if c.status in ("done", "skipped")
             and 1 not in stored.get(c.key, set())]
+    if todo and settle_s > 0:
+        settle_load(target=float(cores()), max_wait_s=settle_s, progress=progress)
     store = ResultsStore(results_path)
     results = []
     for item in tqdm(todo, desc="timing (serial)", unit="cell", disable=not progress,

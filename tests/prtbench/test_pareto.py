@@ -112,6 +112,25 @@ def test_frame_ms_prefers_rows_measured_alone():
     assert collect_points(rows, error="psnr_masked", cost="memory")[0][0].cost == 1000.0
 
 
+def test_report_prints_the_load_its_frame_times_were_measured_under():
+    from prtbench.tradeoff.pareto_report import _load_note
+
+    quiet = [_row(view=0, load_average=1.2, device="AMD EPYC, 2 cores"),
+             _row(view=1, load_average=2.4, device="AMD EPYC, 2 cores"),
+             _row(view=2, load_average=9.0, device="AMD EPYC, 2 cores", workers=2)]
+    points = collect_points(quiet, error="psnr_masked", cost="frame_ms")[0]
+    # Only the rows the frame time comes from (measured alone) count.
+    assert points[0].loads == [1.2, 2.4]
+    note = _load_note(points, "frame_ms")
+    assert "1.2 to 2.4" in note and "busy" not in note
+    busy = collect_points([_row(load_average=3.5, device="AMD EPYC, 2 cores")],
+                          error="psnr_masked", cost="frame_ms")[0]
+    assert "busy" in _load_note(busy, "frame_ms")
+    assert _load_note(busy, "memory") == ""  # a load says nothing about bytes
+    assert _load_note(collect_points([_row()], error="psnr_masked", cost="frame_ms")[0],
+                      "frame_ms") == ""  # no stored load: nothing claimed
+
+
 # -- costs -------------------------------------------------------------------------------------
 
 def test_cost_value_per_kind():

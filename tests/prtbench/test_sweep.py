@@ -283,3 +283,20 @@ def test_existing_scheduler_runs_the_sweep_unchanged(tmp_path):
     assert [c.status for c in outcome.cells] == ["done"] and outcome.workers == 1
     (rows,) = _by_key(tmp_path / "r.sqlite").values()
     assert rows[0].workers == 1 and rows[0].metrics["psnr_masked"] > 10.0
+
+
+def test_settle_load_waits_for_the_parallel_phase_to_leave_the_load_average(monkeypatch):
+    from prtbench.tradeoff import sweep as sweep_mod
+
+    readings = iter([3.4, 3.0, 2.5, 1.9, 1.5])
+    clock = {"t": 0.0}
+    monkeypatch.setattr(sweep_mod.os, "getloadavg", lambda: (next(readings), 0.0, 0.0))
+    monkeypatch.setattr(sweep_mod.time, "monotonic", lambda: clock["t"])
+    monkeypatch.setattr(sweep_mod.time, "sleep", lambda s: clock.__setitem__("t", clock["t"] + s))
+    assert sweep_mod.settle_load(target=2.0, max_wait_s=60, poll_s=2, progress=False) == 1.9
+    assert clock["t"] == 6.0  # three polls: 3.0, 2.5, then 1.9 <= 2
+    # Bounded: a machine that stays busy costs at most max_wait_s.
+    monkeypatch.setattr(sweep_mod.os, "getloadavg", lambda: (5.0, 0.0, 0.0))
+    clock["t"] = 0.0
+    assert sweep_mod.settle_load(target=2.0, max_wait_s=10, poll_s=2, progress=False) == 5.0
+    assert clock["t"] == 10.0
