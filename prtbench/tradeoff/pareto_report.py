@@ -203,7 +203,7 @@ def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
     panels = _panels(result.points)
     higher = ERRORS[result.error]
     with plt.rc_context({"svg.hashsalt": "prtbench-pareto", "font.size": 9}):
-        fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+        fig, axes = plt.subplots(1, len(panels), figsize=(8.0 * len(panels), 4.6), squeeze=False)
         for ax, ((variant, width, height), members) in zip(axes[0], panels.items()):
             placed = [p for p in members if p.dominated is not None]
             for method in sorted({p.method for p in placed}):
@@ -238,7 +238,8 @@ def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
             ax.set_title(f"{result.scene} / {result.light}: {variant}, {width}×{height}, "
                          f"{result.profile} (filled: on the front, hollow: dominated)", fontsize=9)
             ax.grid(True, which="major", alpha=0.3)
-            ax.legend(fontsize=7, loc="best", framealpha=0.8)
+            # Beside the axes: with a dozen methods any corner inside hides points.
+            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         fig.tight_layout()
         with atomic_path(png) as tmp:
             fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
