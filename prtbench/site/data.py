@@ -30,7 +30,8 @@ FILL_COMMAND = "`prtbench sweep sweeps/plants-all.toml --profile quick` (or `mak
 
 
 def slug(*parts: str) -> str:
-    """A file-name-safe identifier of ``parts`` (letters, digits, ``.``, ``_``, ``-``)."""
+    """A file-name-safe identifier of ``parts``: each part keeps letters, digits, ``.`` and
+    ``_`` (anything else, ``-`` included, becomes ``_``), and ``-`` joins the parts."""
     return "-".join(re.sub(r"[^A-Za-z0-9._]+", "_", str(p)) for p in parts)
 
 

@@ -22,6 +22,7 @@ import pytest
 
 from prtbench.results import ResultsStore
 from prtbench.site.build import MARKER, build
+from prtbench.site.data import slug
 
 from . import chromium
 from .site_store import make_store
@@ -125,7 +126,8 @@ def _check_site(site: Path, browser, *, screenshots: Path | None) -> None:
         if page in scene_pages:
             stem = page.stem.split("-")
             points = browser.evaluate("document.querySelectorAll('.plot .scatterlayer path.point').length")
-            key = next(k for k in expected_points if page.name == f"scene-{'-'.join(k)}.html")
+            # Page names slug each part ('sdf-rabbit' -> 'sdf_rabbit'): '-' joins the parts.
+            key = next(k for k in expected_points if page.name == f"scene-{slug(*k)}.html")
             assert points == expected_points[key], (page.name, points, expected_points[key], stem)
         assert browser.console_errors[before:] == [], (page.name, browser.console_errors[before:])
     page = scene_pages[0]

@@ -126,6 +126,8 @@ def test_shipped_sweep_files_cover_every_method():
     assert not every.dropped
     assert {c.scene for c in every.cells if c.method != "learnt-sdf"} == {"plants"}
     assert {c.light for c in every.cells} == {"sky"}
+    room = grid.load_sweep(ROOT / "sweeps" / "room-all.toml", profile="smoke")  # make pareto
+    assert {c.method for c in room.cells} == set(METHODS.names()) and not room.dropped
     demo = grid.load_sweep(ROOT / "sweeps" / "demo.toml")  # make demo: every method, once or twice
     assert {c.method for c in demo.cells} == set(METHODS.names()) and not demo.dropped
     quick = grid.load_sweep(ROOT / "sweeps" / "plants-quick24.toml")
