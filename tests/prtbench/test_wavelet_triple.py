@@ -126,3 +126,71 @@ def test_bad_shapes_are_one_line_errors():
     with pytest.raises(InvalidInputError, match="6·N²"):
         triple_product(np.ones((10, 1)), SparseRows.from_dense(np.ones((2, 10))),
                        SparseRows.from_dense(np.ones((2, 10))))
+
+
+# --- the cosine-weighted Phong BRDF in Haar (prtbench.wavelet.brdf) ---------------------------
+
+def _unit(rng, count):
+    v = rng.normal(size=(count, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def test_brdf_factors_integrate_to_their_closed_forms():
+    from prtbench.wavelet import brdf
+
+    rng = np.random.default_rng(11)
+    normals = _unit(rng, 6)
+    # ∫ max(n·ω, 0)/π dω = 1; with r = n, ∫ (s+1)/(2π) (r·ω)^s (n·ω) dω = (s+1)/(s+2).
+    d = brdf.factor_texels(normals, n=16, samples=4)
+    assert np.allclose(d.sum(axis=1), 1.0, atol=2e-3), d.sum(axis=1)
+    for s in (0.0, 8.0, 64.0):
+        g = brdf.factor_texels(normals, n=32, reflections=normals, shininess=s, samples=2)
+        assert np.allclose(g.sum(axis=1), (s + 1) / (s + 2), rtol=5e-3), (s, g.sum(axis=1))
+    assert np.all(d >= 0) and np.all(g >= 0)
+    # A mirror direction at 60° from the normal loses the lobe's part below the horizon.
+    view = np.array([[np.sin(np.radians(60)), 0.0, np.cos(np.radians(60))]])
+    r = brdf.reflect(view, np.array([[0.0, 0.0, 1.0]]))
+    assert np.allclose(r, [[-view[0, 0], 0.0, view[0, 2]]])
+    tilted = brdf.factor_texels(np.array([[0.0, 0.0, 1.0]]), n=32, reflections=r, shininess=8.0,
+                                samples=2).sum()
+    assert 0.4 < tilted < (9 / 10) * 0.6  # ≈ cos 60° · (s+1)/(s+2), less the clipped part
+    with pytest.raises(InvalidInputError, match="shininess"):
+        brdf.factor_texels(normals, n=8, reflections=normals, shininess=-1.0)
+
+
+def test_brdf_projection_keeps_the_largest_coefficients():
+    from prtbench.wavelet import brdf
+
+    rng = np.random.default_rng(5)
+    normals, views = _unit(rng, 20), _unit(rng, 20)
+    r = brdf.reflect(views, normals)
+    texels = brdf.factor_texels(normals, n=N, reflections=r, shininess=32.0)
+    full = haar.forward(texels.reshape(-1, 6, N, N)).reshape(-1, M)
+    p, c, v = brdf.project(normals, n=N, keep=M, reflections=r, shininess=32.0)
+    rows = SparseRows.from_entries(p, c, v, n_points=20, n_coeffs=M).dense()
+    assert np.allclose(rows, full, atol=1e-6)
+    p, c, v = brdf.project(normals, n=N, keep=10, reflections=r, shininess=32.0)
+    kept = SparseRows.from_entries(p, c, v, n_points=20, n_coeffs=M).dense()
+    tenth = -np.sort(-np.abs(full), axis=1)[:, 9]
+    assert np.all((kept != 0).sum(axis=1) <= 10)
+    assert np.all(np.abs(full)[kept == 0].reshape(-1) <= np.repeat(tenth, M - 10) + 1e-6)
+    with pytest.raises(InvalidInputError, match="brdf_keep=0"):
+        brdf.project(normals, n=N, keep=0)
+
+
+def test_visibility_only_transport_is_the_visible_fraction():
+    from prtbench.scene import get_scene
+    from prtbench.wavelet.cubemap import texel_solid_angles
+    from prtbench.wavelet.transport import compute_wavelet_transport
+
+    scene = get_scene("plane")  # nothing occludes its up-facing points
+    points, normals = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.5]]), np.array([[0.0, 1.0, 0.0]] * 2)
+    transport, _ = compute_wavelet_transport(scene, points, normals, n=N, texel_samples=4,
+                                             cosine=False, progress=False)
+    texel_v = haar.inverse(transport.dense().reshape(2, 6, N, N)).reshape(2, M)
+    assert texel_v.min() > -1e-6 and texel_v.max() < 1 + 1e-6
+    # Visible fraction × solid angle sums to the upper hemisphere's 2π (the +Y face and half of
+    # the four side faces), to the 4×4 subsample rule at the horizon.
+    assert np.allclose(texel_v @ texel_solid_angles(N).reshape(M), 2 * np.pi, rtol=1e-3)
+    assert np.allclose(texel_v.reshape(2, 6, N, N)[:, 2], 1.0, atol=1e-6)  # +Y face
+    assert np.allclose(texel_v.reshape(2, 6, N, N)[:, 3], 0.0, atol=1e-6)  # −Y face
