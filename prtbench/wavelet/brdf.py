@@ -107,7 +107,8 @@ def project(normals: np.ndarray, *, n: int, keep: int, reflections: np.ndarray |
     Returns
     -------
     points, coeffs : ndarray, shape (nnz,), int64
-        Point (0..P−1) and flat coefficient of each kept non-zero entry, by point.
+        Point (0..P−1) and flat coefficient of each kept non-zero entry, by point then
+        coefficient (ready for :class:`~prtbench.wavelet.triple.SparseRows` keys).
     values : ndarray, shape (nnz,), float32
     """
     n = check_resolution(n)
@@ -125,7 +126,8 @@ def project(normals: np.ndarray, *, n: int, keep: int, reflections: np.ndarray |
                                else reflections[sl], shininess=shininess, samples=samples)
         coeffs = haar.forward(texels.reshape(-1, 6, n, n), dtype=np.float32).reshape(-1, m)
         if keep < m:
-            idx = np.argpartition(-np.abs(coeffs), keep - 1, axis=1)[:, :keep]
+            # Sorted within each point, so (point, coefficient) keys come out increasing.
+            idx = np.sort(np.argpartition(-np.abs(coeffs), keep - 1, axis=1)[:, :keep], axis=1)
             vals = np.take_along_axis(coeffs, idx, axis=1)
         else:
             idx, vals = np.broadcast_to(np.arange(m), coeffs.shape), coeffs

@@ -95,6 +95,24 @@ def test_all_terms_equal_the_per_texel_integration_of_l_v_rho():
         assert artifact.meta["stored_entries"] == renderer.visibility.nnz
     finally:
         renderer.release()
+    # Truncated everything (k, V and both BRDF factors): the tree algorithm on the kept terms
+    # is still the per-texel product of the truncated signals.
+    from prtbench.wavelet.triple import brute_force
+
+    renderer, _ = _renderer(scene, cubemap=n, light_terms=40, keep=30, brdf_keep=50,
+                            storage="float32", selection="area")
+    try:
+        got = renderer.radiance(view, light)
+        lit = np.zeros((m, 3))
+        coeffs = haar.forward(np.moveaxis(light_cubemap(light, n), -1, 0)).reshape(3, m).T
+        lit[renderer.last_terms] = coeffs[renderer.last_terms]
+        v = renderer.visibility.dense()
+        want = (renderer.kd * brute_force(lit, v, renderer.diffuse.dense())
+                + renderer.ks * brute_force(lit, v, renderer.last_glossy.dense()))
+        assert np.count_nonzero(renderer.last_glossy.dense(), axis=1).max() == 50
+        assert np.allclose(got, want, rtol=1e-4, atol=1e-6), np.abs(got - want).max()
+    finally:
+        renderer.release()
 
 
 def test_the_image_follows_the_view_and_the_terms_follow_the_light():
