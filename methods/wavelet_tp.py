@@ -10,10 +10,13 @@ cubemap (:mod:`prtbench.wavelet.triple`):
 * **ρ̃** the cosine-weighted Phong BRDF of DESIGN.md §4 with the texel solid angles folded in,
   split as kd·D + ks·G (:mod:`prtbench.wavelet.brdf`): the diffuse factor D depends only on
   the (static) normal and is projected once per vertex at precompute; the glossy factor G
-  depends on (n, ωo) and is projected **per vertex per frame** for the vertex's own mirror
-  direction, truncated to ``brdf_keep`` (Ng 2004 tabulates ρ̃ over sampled normals × view
-  directions instead; projecting per frame avoids the table's direction binning and its cost,
-  O(glossy vertices · 6N² · brdf_samples²), is inside the measured frame);
+  depends on (n, ωo). By default it is projected **per vertex per frame** for the vertex's own
+  mirror direction, truncated to ``brdf_keep``: no direction binning, and its cost,
+  O(glossy vertices · 6N² · brdf_samples²), is inside the measured frame. With
+  ``brdf_table`` = T it is Ng 2004's table instead (:class:`~prtbench.wavelet.brdf.BrdfTable`):
+  G precomputed for the normal bins of a 6×T×T cube that the object's normals fall in × all
+  6T² mirror-direction bins, looked up nearest per vertex per frame (O(kept) per vertex, the
+  table resident and counted in ``memory_bytes``; n and r binned to the table);
 * **L** per frame: the light's cubemap Haar-transformed and cut to its ``light_terms`` = k
   most important coefficients by ``selection`` (non-linear approximation, as ``wavelet-vertex``).
 
@@ -45,6 +48,8 @@ from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_con
 
 #: Bytes per BRDF entry resident while rendering: int64 key + float32 value.
 BRDF_ENTRY_BYTES = 12
+#: Bytes per tabulated BRDF entry (``brdf_table``): int32 coefficient + float32 value.
+TABLE_ENTRY_BYTES = 8
 
 
 @dataclass(frozen=True)
@@ -67,6 +72,11 @@ class WaveletTPConfig:
     brdf_keep: int = knob(128, "Haar coefficients kept per vertex of each BRDF factor (diffuse "
                                "once, glossy every frame); at most 6·N².",
                           low=1, high=6 * 1024**2)
+    brdf_table: int = knob(0, "0: project the glossy BRDF factor for each vertex's own normal "
+                              "and mirror direction every frame. T (a power of two): Ng 2004's "
+                              "table, G precomputed for the 6×T×T-cube bins of the normals × "
+                              "all 6·T² mirror-direction bins, looked up nearest per frame.",
+                          low=0, high=64)
     brdf_samples: int = knob(1, "Midpoints per texel side integrating the BRDF over each texel "
                                 "(S×S, area-element weighted).", low=1, high=8)
     storage: str = knob("float16", "Stored visibility value type (int8 uses a per-vertex "
@@ -83,10 +93,20 @@ def _check_config(scene, config: WaveletTPConfig) -> tuple[int, int]:
         raise InvalidInputError(f"brdf_keep={config.brdf_keep} exceeds the {m} wavelet "
                                 f"coefficients of a cubemap={config.cubemap} (6·N²); "
                                 f"accepted: 1..{m}")
-    # The diffuse and glossy factors' entries, plus a chunk of dense texels being projected.
+    # The diffuse and glossy factors' entries, plus a chunk of dense texels being projected,
+    # plus the tables (at most min(vertices, 6T²) normal bins × 6T² mirror bins per object).
     need = 2 * scene.n_vertices * config.brdf_keep * BRDF_ENTRY_BYTES + (64 << 20)
+    if config.brdf_table:
+        t = config.brdf_table
+        if t & (t - 1):
+            raise InvalidInputError(f"brdf_table={t}; accepted: 0 (project per vertex per "
+                                    "frame) or a power of two 1..64 (the table's cube bins)")
+        bins = 6 * t * t
+        need += sum(min(o.mesh.n_vertices, bins) * bins * config.brdf_keep * TABLE_ENTRY_BYTES
+                    for o in scene.objects if o.material.is_glossy)
     check_memory(f"method 'wavelet-tp' cubemap={config.cubemap} brdf_keep={config.brdf_keep} "
-                 f"on {scene.n_vertices} vertices", need, accepted="a smaller brdf_keep")
+                 f"brdf_table={config.brdf_table} on {scene.n_vertices} vertices", need,
+                 accepted="a smaller brdf_keep or brdf_table")
     return m, kept
 
 
@@ -161,11 +181,24 @@ class WaveletTP(Method):
                                                     samples=config.brdf_samples)
         diffuse = {"diffuse_points": d_points.astype(np.uint32),
                    "diffuse_coeffs": d_coeffs.astype(np.uint32), "diffuse_values": d_values}
-        return Artifact("wavelet-tp", {**transport.arrays(), **diffuse},
+        tables, start, count = {}, 0, 0
+        for obj in scene.objects:  # Ng 2004's glossy tables, one per glossy object
+            sl = slice(start, start + obj.mesh.n_vertices)
+            start = sl.stop
+            if config.brdf_table and obj.material.is_glossy:
+                table, slots = brdf.BrdfTable.build(
+                    normals[sl], t=config.brdf_table, n=config.cubemap, keep=config.brdf_keep,
+                    shininess=float(obj.material.shininess), samples=config.brdf_samples)
+                prefix = f"table{count}_"
+                tables.update(table.arrays(prefix))
+                tables[f"{prefix}slots"] = slots.astype(np.uint32)
+                count += 1
+        return Artifact("wavelet-tp", {**transport.arrays(), **diffuse, **tables},
                         {"vertices": int(len(positions)), "coefficients": m,
                          "kept_per_vertex": kept, "stored_entries": transport.nnz,
                          "stored_bytes": transport.nbytes,
                          "diffuse_entries": int(len(d_values)),
+                         "table_bytes": int(sum(a.nbytes for a in tables.values())),
                          "dense_float32_bytes": len(positions) * m * 4,
                          "rays": rays, "trace_s": trace_s})
 
@@ -207,6 +240,13 @@ class WaveletTPRenderer(RasterRenderer):
                 self.glossy.append((slice(start, start + count), float(obj.material.shininess)))
             start += count
         self.kd, self.ks = np.concatenate(self.kd), np.concatenate(self.ks)
+        self.tables = []  # (BrdfTable, slots) per glossy object with brdf_table
+        if config.brdf_table:
+            from prtbench.wavelet.brdf import BrdfTable
+
+            self.tables = [(BrdfTable.from_arrays(a, f"table{g}_"),
+                            a[f"table{g}_slots"].astype(np.int64))
+                           for g in range(len(self.glossy))]
         self.incident = self.ctx.buffer(reserve=12 * transport.n_points)
         self._resident = [self.incident]
         self.last_terms: np.ndarray | None = None
@@ -218,13 +258,17 @@ class WaveletTPRenderer(RasterRenderer):
         from prtbench.wavelet.triple import SparseRows
 
         parts = []
-        for sl, shininess in self.glossy:
+        for g, (sl, shininess) in enumerate(self.glossy):
             to_eye = np.asarray(view.eye, np.float64) - self.positions[sl]
             to_eye /= np.maximum(np.linalg.norm(to_eye, axis=1, keepdims=True), 1e-30)
             r = brdf.reflect(to_eye, self.normals[sl])
-            p, c, v = brdf.project(self.normals[sl], n=self.config.cubemap,
-                                   keep=self.config.brdf_keep, reflections=r,
-                                   shininess=shininess, samples=self.config.brdf_samples)
+            if self.tables:
+                table, slots = self.tables[g]
+                p, c, v = table.gather(slots, r)
+            else:
+                p, c, v = brdf.project(self.normals[sl], n=self.config.cubemap,
+                                       keep=self.config.brdf_keep, reflections=r,
+                                       shininess=shininess, samples=self.config.brdf_samples)
             parts.append((p + sl.start, c, v))
         if not parts:
             return SparseRows(np.zeros(0, np.int64), np.zeros(0, np.float32),
@@ -270,8 +314,10 @@ class WaveletTPRenderer(RasterRenderer):
 
     def memory_bytes(self) -> int:
         """Visibility rows, diffuse BRDF rows, the glossy rows' bound (glossy vertices ×
-        brdf_keep entries), selection weights and the per-vertex radiance buffer."""
+        brdf_keep entries), the BRDF tables and their per-vertex slots (``brdf_table``),
+        selection weights and the per-vertex radiance buffer."""
         glossy_vertices = sum(sl.stop - sl.start for sl, _ in self.glossy)
         weights = 0 if self.relight.weights is None else self.relight.weights.nbytes
+        tables = sum(table.nbytes + slots.nbytes for table, slots in self.tables)
         return int(self.visibility.nbytes + self.diffuse.nbytes + weights + self.incident.size
-                   + glossy_vertices * self.config.brdf_keep * BRDF_ENTRY_BYTES)
+                   + glossy_vertices * self.config.brdf_keep * BRDF_ENTRY_BYTES + tables)

@@ -139,3 +139,78 @@ def project(normals: np.ndarray, *, n: int, keep: int, reflections: np.ndarray |
     return (np.concatenate([q[0] for q in parts]).astype(np.int64),
             np.concatenate([q[1] for q in parts]).astype(np.int64),
             np.concatenate([q[2] for q in parts]))
+
+
+def direction_bins(dirs: np.ndarray, t: int) -> np.ndarray:
+    """Flat texel index (face·t² + row·t + column) of each direction on a 6×t×t cube, (P,)."""
+    from .cubemap import directions_to_texels
+
+    face, row, col, _, _ = directions_to_texels(dirs, t)
+    return face * t * t + row * t + col
+
+
+class BrdfTable:
+    """Ng 2004's tabulated glossy factor: G in Haar for sampled normals × mirror directions.
+
+    Normals and mirror directions are binned on a 6×t×t cube and G is projected (texel
+    integrals, Haar, ``keep`` largest) once per (normal bin, mirror bin) at the bins' centre
+    directions; only the normal bins that the object's (static) vertex normals fall in are
+    tabulated, with every mirror bin. A frame looks up the nearest entry per vertex (O(kept)
+    per vertex, no texel work), at the price of binning n and r to the table's resolution.
+
+    Attributes
+    ----------
+    t : int
+    indptr : ndarray, shape (B·6t² + 1,), int64
+        Entry ``slot·6t² + mirror bin`` holds ``coeffs[indptr[e]:indptr[e+1]]``, ascending.
+    coeffs : ndarray, shape (nnz,), int32
+    values : ndarray, shape (nnz,), float32
+    """
+
+    def __init__(self, t: int, indptr: np.ndarray, coeffs: np.ndarray, values: np.ndarray):
+        self.t, self.indptr, self.coeffs, self.values = int(t), indptr, coeffs, values
+
+    @classmethod
+    def build(cls, normals: np.ndarray, *, t: int, n: int, keep: int, shininess: float,
+              samples: int = 1) -> tuple["BrdfTable", np.ndarray]:
+        """The table for vertex ``normals`` (P, 3) and each vertex's slot (P,) int64 in it."""
+        from .cubemap import texel_directions
+
+        t = check_resolution(t, what="brdf_table")
+        bins = direction_bins(normals, t)
+        present, slots = np.unique(bins, return_inverse=True)
+        centres = texel_directions(t).reshape(-1, 3)
+        r_count = len(centres)
+        table_n = np.repeat(centres[present], r_count, axis=0)
+        table_r = np.tile(centres, (len(present), 1))
+        points, coeffs, values = project(table_n, n=n, keep=keep, reflections=table_r,
+                                         shininess=shininess, samples=samples)
+        indptr = np.zeros(len(table_n) + 1, np.int64)
+        np.cumsum(np.bincount(points, minlength=len(table_n)), out=indptr[1:])
+        return cls(t, indptr, coeffs.astype(np.int32), values.astype(np.float32)), slots
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.indptr.nbytes + self.coeffs.nbytes + self.values.nbytes)
+
+    def arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        return {f"{prefix}indptr": self.indptr, f"{prefix}coeffs": self.coeffs,
+                f"{prefix}values": self.values, f"{prefix}t": np.array(self.t)}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str) -> "BrdfTable":
+        return cls(int(arrays[f"{prefix}t"]), arrays[f"{prefix}indptr"],
+                   arrays[f"{prefix}coeffs"], arrays[f"{prefix}values"])
+
+    def gather(self, slots: np.ndarray, reflections: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Entries of each vertex's nearest (normal slot, mirror bin), as :func:`project` returns."""
+        entry = np.asarray(slots, np.int64) * 6 * self.t * self.t + direction_bins(reflections,
+                                                                                   self.t)
+        starts = self.indptr[entry]
+        counts = self.indptr[entry + 1] - starts
+        total = int(counts.sum())
+        before = np.cumsum(counts) - counts
+        picked = np.repeat(starts - before, counts) + np.arange(total)
+        points = np.repeat(np.arange(len(entry), dtype=np.int64), counts)
+        return points, self.coeffs[picked].astype(np.int64), self.values[picked]

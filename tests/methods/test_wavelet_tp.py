@@ -140,6 +140,7 @@ def test_the_image_follows_the_view_and_the_terms_follow_the_light():
     (["cubemap=8", "brdf_keep=385"], "brdf_keep=385 exceeds the 384"),
     (["cubemap=8", "keep=5000"], "keep=5000"),
     (["selection=largest"], "accepted: magnitude, area, transport"),
+    (["brdf_table=3"], "brdf_table=3; accepted: 0 (project per vertex per frame) or a power"),
 ])
 def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, capsys, sets,
                                                           fragment):
@@ -236,3 +237,24 @@ def test_converges_towards_the_path_reference_on_the_glossy_scene():
     assert psnr["fine"] >= psnr["coarse"] + 2.0, psnr
     assert psnr["fine"] >= psnr["unshadowed"] + 2.0, psnr
     assert psnr["fine"] >= psnr["sloan-matrix"] + 2.0, psnr
+
+
+def test_brdf_table_approaches_the_per_vertex_projection():
+    # Ng 2004's table bins n and r on a 6×T×T cube: finer tables approach the exact per-vertex
+    # projection of the same glossy factor (s = 128 sphere, s = 32 ground, smoke cubemap 8).
+    scene = get_scene("sphere-over-plane", variant="glossy", plane_subdivisions=8)
+    view, light = scene.trajectory.views[0], get_light("sun")
+    radiance, memory = {}, {}
+    for t in (0, 2, 4, 8):
+        renderer, artifact = _renderer(scene, profile="smoke", brdf_table=t)
+        try:
+            radiance[t] = renderer.radiance(view, light)
+            memory[t] = renderer.memory_bytes()
+        finally:
+            renderer.release()
+        assert (artifact.meta["table_bytes"] > 0) == (t > 0)
+    error = {t: np.abs(radiance[t] - radiance[0]).mean() / np.abs(radiance[0]).mean()
+             for t in (2, 4, 8)}
+    assert error[2] > error[4] > error[8], error
+    assert error[8] < 0.5 * error[2], error
+    assert memory[0] < memory[2] < memory[4] < memory[8]  # the tables are resident

@@ -194,3 +194,29 @@ def test_visibility_only_transport_is_the_visible_fraction():
     assert np.allclose(texel_v @ texel_solid_angles(N).reshape(M), 2 * np.pi, rtol=1e-3)
     assert np.allclose(texel_v.reshape(2, 6, N, N)[:, 2], 1.0, atol=1e-6)  # +Y face
     assert np.allclose(texel_v.reshape(2, 6, N, N)[:, 3], 0.0, atol=1e-6)  # −Y face
+
+
+def test_brdf_table_looks_up_the_entry_of_the_bins_centres():
+    from prtbench.wavelet import brdf
+    from prtbench.wavelet.cubemap import texel_directions
+
+    t = 4
+    centres = texel_directions(t).reshape(-1, 3)
+    rng = np.random.default_rng(2)
+    pick_n, pick_r = rng.choice(len(centres), 12), rng.choice(len(centres), 12)
+    # Vertex normals and mirror directions a little off their bins' centres.
+    normals = centres[pick_n] + 0.01 * rng.normal(size=(12, 3))
+    reflections = centres[pick_r] + 0.01 * rng.normal(size=(12, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    reflections /= np.linalg.norm(reflections, axis=1, keepdims=True)
+    table, slots = brdf.BrdfTable.build(normals, t=t, n=N, keep=20, shininess=16.0)
+    assert len(table.indptr) - 1 == len(np.unique(pick_n)) * 6 * t * t  # present normal bins
+    got = SparseRows.from_entries(*table.gather(slots, reflections), n_points=12,
+                                  n_coeffs=M).dense()
+    want = SparseRows.from_entries(*brdf.project(centres[pick_n], n=N, keep=20,
+                                                 reflections=centres[pick_r], shininess=16.0),
+                                   n_points=12, n_coeffs=M).dense()
+    assert np.abs(want).max() > 0
+    assert np.allclose(got, want, atol=1e-7)
+    assert np.all(np.diff(SparseRows.from_entries(*table.gather(slots, reflections),
+                                                  n_points=12, n_coeffs=M).keys) > 0)
