@@ -46,8 +46,9 @@ from .vertex_glossy import _validate_materials
 from .wavelet_relight import (SELECTIONS, STORAGES, Relighter, check_wavelet_config,
                               host_frame_times)
 
-#: Bytes per BRDF entry resident while rendering: int64 key + float32 value.
-BRDF_ENTRY_BYTES = 12
+#: Bytes per glossy BRDF entry formed each frame: int64 key, point and coefficient + float32
+#: value.
+BRDF_ENTRY_BYTES = 28
 #: Bytes per tabulated BRDF entry (``brdf_table``): int32 coefficient + float32 value.
 TABLE_ENTRY_BYTES = 8
 
@@ -276,7 +277,7 @@ class WaveletTPRenderer(RasterRenderer):
         # Objects are in merged order, each by vertex: concatenated keys stay sorted.
         p, c, v = (np.concatenate([q[i] for q in parts]) for i in range(3))
         return SparseRows(p * self.visibility.n_coeffs + c, v, self.visibility.n_points,
-                          self.visibility.n_coeffs)
+                          self.visibility.n_coeffs, points=p, coeffs=c)
 
     def radiance(self, view, light) -> np.ndarray:
         """(P, 3) float32 outgoing radiance towards ``view`` of every vertex: the frame's CPU

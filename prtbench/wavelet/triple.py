@@ -102,12 +102,24 @@ class SparseRows:
         ``point · n_coeffs + coefficient``, strictly increasing.
     values : ndarray, shape (nnz,), float32 or float64
     n_points, n_coeffs : int
+    points, coeffs : ndarray, shape (nnz,), int32 or int64
+        The two halves of each key (derived from ``keys`` when not given): kept beside the
+        keys so that a frame does not divide them out again.
     """
 
     keys: np.ndarray
     values: np.ndarray
     n_points: int
     n_coeffs: int
+    points: np.ndarray | None = None
+    coeffs: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.points is None or self.coeffs is None:
+            small = self.n_points * self.n_coeffs < 1 << 31
+            points, coeffs = np.divmod(self.keys, self.n_coeffs)
+            self.points = points.astype(np.int32 if small else np.int64)
+            self.coeffs = coeffs.astype(np.int32)
 
     @classmethod
     def from_entries(cls, points, coeffs, values, *, n_points: int, n_coeffs: int
@@ -142,15 +154,9 @@ class SparseRows:
 
     @property
     def nbytes(self) -> int:
-        return int(self.keys.nbytes + self.values.nbytes)
-
-    @property
-    def points(self) -> np.ndarray:
-        return self.keys // self.n_coeffs
-
-    @property
-    def coeffs(self) -> np.ndarray:
-        return self.keys % self.n_coeffs
+        """Bytes of the keys, values and their point and coefficient halves."""
+        return int(self.keys.nbytes + self.values.nbytes + self.points.nbytes
+                   + self.coeffs.nbytes)
 
     def lookup(self, points: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
         """Stored value at each (point, coefficient), 0 where none is stored; float64."""
@@ -220,10 +226,11 @@ def parent_means(signal: SparseRows, points: np.ndarray, coeffs: np.ndarray) -> 
         shift = level[act] - ancestor
         ay, ax = y[act] >> shift, x[act] >> shift
         dy, dx = (y[act] >> (shift - 1)) & 1, (x[act] >> (shift - 1)) & 1
-        total = np.zeros(len(act))
-        for k in range(3):
-            idx = wavelet_index(face[act], ancestor, ay, ax, k, n)
-            total += SIGNS[k, dy, dx] * signal.lookup(points[act], idx)
+        # The node's three wavelets in one search (3 × the queries, a third of the calls).
+        idx = np.concatenate([wavelet_index(face[act], ancestor, ay, ax, k, n) for k in range(3)])
+        found = signal.lookup(np.tile(points[act], 3), idx).reshape(3, -1)
+        total = (SIGNS[0, dy, dx] * found[0] + SIGNS[1, dy, dx] * found[1]
+                 + SIGNS[2, dy, dx] * found[2])
         out[act] += total / (n >> ancestor)
     return out
 
