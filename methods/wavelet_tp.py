@@ -5,8 +5,8 @@ cubemap (:mod:`prtbench.wavelet.triple`):
 
 * **V** per vertex (precompute): the texel's visible fraction (one embree ray per texel, or
   S×S; no cosine, no solid angle), Haar-transformed, truncated to ``keep`` and stored sparse
-  and quantised like ``wavelet-vertex`` (:func:`~prtbench.wavelet.transport.compute_wavelet_transport`
-  with ``cosine=False``);
+  and quantised like ``wavelet-vertex``
+  (:func:`~prtbench.wavelet.transport.compute_wavelet_transport` with ``cosine=False``);
 * **ρ̃** the cosine-weighted Phong BRDF of DESIGN.md §4 with the texel solid angles folded in,
   split as kd·D + ks·G (:mod:`prtbench.wavelet.brdf`): the diffuse factor D depends only on
   the (static) normal and is projected once per vertex at precompute; the glossy factor G

@@ -204,9 +204,10 @@ class BrdfTable:
 
     def gather(self, slots: np.ndarray, reflections: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Entries of each vertex's nearest (normal slot, mirror bin), as :func:`project` returns."""
-        entry = np.asarray(slots, np.int64) * 6 * self.t * self.t + direction_bins(reflections,
-                                                                                   self.t)
+        """Entries of each vertex's nearest (normal slot, mirror bin), as :func:`project`
+        returns them."""
+        entry = (np.asarray(slots, np.int64) * 6 * self.t * self.t
+                 + direction_bins(reflections, self.t))
         starts = self.indptr[entry]
         counts = self.indptr[entry + 1] - starts
         total = int(counts.sum())

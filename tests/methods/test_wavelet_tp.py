@@ -79,7 +79,8 @@ def test_all_terms_equal_the_per_texel_integration_of_l_v_rho():
         start = 0
         for obj in scene.objects:
             sl = slice(start, start + obj.mesh.n_vertices)
-            g = brdf.factor_texels(normals[sl], n=n, reflections=brdf.reflect(to_eye[sl], normals[sl]),
+            r = brdf.reflect(to_eye[sl], normals[sl])
+            g = brdf.factor_texels(normals[sl], n=n, reflections=r,
                                    shininess=obj.material.shininess)
             want[sl] += renderer.ks[sl] * ((texel_v[sl] * g) @ texel_l)
             start = sl.stop
