@@ -90,6 +90,7 @@ def main() -> int:
         support = haar.support_solid_angles(n).reshape(m)
         for k, keep, brdf_keep in SPARSITIES:
             k, brdf_keep = min(k or m, m), min(brdf_keep or m, m)
+            keep = keep if keep <= 1.0 else min(keep, m)
             transport, _ = compute_wavelet_transport(scene, positions, normals, n=n, keep=keep,
                                                      storage="float32", cosine=False,
                                                      progress=False)
