@@ -9,6 +9,11 @@ DESIGN.md §17. Three nouns, one module each:
 * :mod:`~prtbench.wavelet.selection`: the k largest lighting coefficients per frame (by
   magnitude, area-weighted magnitude or transport-weighted magnitude).
 
+and for Ng 2004's changing view: :mod:`~prtbench.wavelet.triple` (Haar triple products
+∫ L·V·ρ̃ by the tree algorithm) and :mod:`~prtbench.wavelet.brdf` (the cosine-weighted Phong
+BRDF in Haar per (n, ωo), projected per vertex or tabulated); there the transport is V·ρ̃
+and the weights live in its BRDF factor ρ̃ (V is a bare visible fraction).
+
 **Where the solid-angle weights live** (one convention for every wavelet method): in the
 *transport*. A cubemap light is its texel-mean radiance ``L_t`` (no weights); a transport
 cubemap is ``T_t = ∫_texel V(ω) max(n·ω, 0) dω`` (the texel's solid angle folded in). Then

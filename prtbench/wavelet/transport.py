@@ -75,6 +75,7 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
                               n: int, keep: float = 1.0, texel_samples: int = 1,
                               storage: str = "float32", visibility: bool = True,
                               progress: bool = True, tracer: Tracer | None = None,
+                              cosine: bool = True,
                               ) -> tuple[SparseTransport, dict[str, float]]:
     """Per-point Haar transport, truncated to ``keep`` coefficients and stored sparse.
 
@@ -98,6 +99,11 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         tqdm bar on stderr.
     tracer : Tracer, optional
         One already built for ``scene``.
+    cosine : bool
+        True (default): the transport V·max(n·ω, 0) with solid angles. False: the texel's
+        visible fraction V_t alone (front-facing unoccluded subsamples / S², no cosine, no
+        weight), the visibility factor of Ng 2004's triple product (``wavelet-tp``), whose
+        BRDF factor carries the cosine and the solid angles.
 
     Returns
     -------
@@ -150,8 +156,12 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
                                       np.take(dirs32, ray_dir, axis=0))
             seconds = time.perf_counter() - start
             front.reshape(-1)[flat[blocked]] = False
-        cos *= front  # in place: V·max(n·ω, 0) · w per ray, float32 like the rays
-        cos *= ray_weight
+        if cosine:
+            cos *= front  # in place: V·max(n·ω, 0) · w per ray, float32 like the rays
+            cos *= ray_weight
+        else:
+            cos = front.astype(np.float32)  # V per ray; / S² makes the texel mean below
+            cos *= np.float32(1.0 / ss)
         t = cos.reshape(len(cos), 6, n, n, ss)
         if ss > 1:  # texel integrals (solid angle folded in), accumulated in float64
             t = t.sum(axis=-1, dtype=np.float64)
