@@ -87,6 +87,45 @@ def test_glossy_furnace_inside_a_closed_shell_reflects_ks(shininess):
     assert np.all(np.isfinite(one)) and np.abs(one[:, 0, 1:, 0]).max() > 1e-3
 
 
+def test_glossy_floor_reflection_matches_quadrature():
+    # A small downward-facing quad 0.1 above a (practically infinite) pure Phong floor whose
+    # incident field is the light itself (M⁰ = identity there). The floor sends towards the
+    # quad ks·(lobe ⋆ L)(Pω) along each ray ω, P the mirror through the floor plane (r =
+    # reflect(−ω, +Y) = Pω), so at the quad's vertices
+    #     M¹_ki = ks·√(4π/(2l_i+1))·g_l_i(s) ∫_{ω_y<0} Y_k(ω) Y_i(Pω) (−ω_y) dω,
+    # evaluated here by Gauss-Legendre × uniform-φ quadrature.
+    from prtbench.geometry import grid_plane
+
+    ks, shininess, bands = 0.8, 16.0, 4
+    floor = grid_plane(400.0, 1)
+    top = grid_plane(1.0, 1, center=(0.0, 0.1, 0.0))
+    quad = TriangleMesh(top.positions, top.faces[:, ::-1], -top.normals)
+    scene = Scene("mirror-gap", [
+        SceneObject("floor", floor, Material(kd=(0.0, 0.0, 0.0), ks=(ks, ks, ks),
+                                             shininess=shininess)),
+        SceneObject("quad", quad, Material(kd=(0.5, 0.5, 0.5)))])
+    n2 = bands * bands
+    direct = np.broadcast_to(np.eye(n2), (scene.n_vertices, n2, n2)).astype(np.float32)
+    one = bounce_matrices(scene, direct, bounces=1, rays_per_point=4096, progress=False)
+    at_quad = one[floor.n_vertices:, :, :, 0] - direct[floor.n_vertices:]
+    mu, w_mu = np.polynomial.legendre.leggauss(96)
+    mu, w_mu = (mu + 1) / 2, w_mu / 2  # −ω_y in [0, 1]
+    phi = (np.arange(192) + 0.5) * 2 * np.pi / 192
+    mu_g, phi_g = np.meshgrid(mu, phi, indexing="ij")
+    sin_t = np.sqrt(1 - mu_g**2)
+    dirs = np.stack([sin_t * np.cos(phi_g), -mu_g, sin_t * np.sin(phi_g)], -1).reshape(-1, 3)
+    weights = np.repeat(w_mu, len(phi)) * 2 * np.pi / len(phi) * mu_g.reshape(-1)
+    ls, _ = sh.lm_of(bands)
+    kernel = np.sqrt(4 * np.pi / (2 * ls + 1)) * sh.phong_zonal(shininess, bands)[ls]
+    mirrored = dirs * np.array([1.0, -1.0, 1.0])
+    exact = ks * (sh.eval_sh(dirs, bands) * weights[:, None]).T @ sh.eval_sh(mirrored, bands)
+    exact = exact * kernel[None, :]
+    assert np.abs(exact).max() > 0.1
+    for matrix in at_quad:
+        assert np.abs(matrix - exact).max() < 1e-2 * np.abs(exact).max(), \
+            np.abs(matrix - exact).max()
+
+
 def _renderer(scene, artifact, bands, *, width=64, height=48):
     cls = METHODS.get("sloan-matrix")
     config = cls.make_config({"sh_bands": bands})
