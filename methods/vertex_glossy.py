@@ -432,7 +432,8 @@ class GlossyVertexRenderer(RasterRenderer):
             RasterRenderer.release(self)
             raise InvalidInputError(
                 f"{key} buffer of {_format_bytes(data.nbytes)} exceeds this GL's shader storage "
-                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh")
+                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh"
+                + (" (bounces make the matrices RGB: 3× the floats)" if rgb else ""))
         # Vertex-major: transfer[v·n² + i], matrices[v·n⁴ + k·n² + i] or, RGB,
         # matrices[(v·n⁴ + k·n² + i)·3 + c].
         self.data_buffer = self.ctx.buffer(data.tobytes())
