@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.ndimage import binary_dilation
 
 import scenes.four_animals  # noqa: F401  registers the scene where the installed metadata lags
 from prtbench.errors import InvalidInputError
@@ -87,9 +88,10 @@ def test_mitsuba_reference_renders_finite_and_lit(user_assets):
     for ref in (direct, bounced):
         assert ref.image.shape == (height, width, 3) and np.all(np.isfinite(ref.image))
         # Lit geometry: the median covered pixel displays well above black (exposure 0.7
-        # targets a linear ~0.35), nothing outside the geometry.
+        # targets a linear ~0.35); the background is not drawn (the box filter averages a
+        # whole pixel, so silhouette pixels just outside the centre-sampled mask may be lit).
         assert np.median(ref.image[mask].mean(axis=1)) * scene.exposure > 0.05
-        assert np.all(ref.image[~mask] == 0)
+        assert np.all(ref.image[~binary_dilation(mask)] == 0)
     # The glossy ground, ring and animals reflect each other: interreflection adds light.
     assert bounced.image[mask].mean() > 1.02 * direct.image[mask].mean()
 
