@@ -47,7 +47,7 @@ def _ring(variant: str) -> Material:
     return Material(kd=(0.05, 0.04, 0.02), ks=(0.9, 0.72, 0.4), shininess=400.0, name="ring")
 
 
-def trajectory(name: str) -> Trajectory:
+def trajectory_views(name: str) -> Trajectory:
     """The ``near`` (training orbit) or ``far`` (held-out helix) views, 30 each."""
     if name == "near":
         return Trajectory.orbit(center=CENTER, radius=2.3, height=0.9, n_views=N_VIEWS,
@@ -84,7 +84,7 @@ def build(*, variant: str = "diffuse", trajectory: str = "near", ground_subdivis
         Ground quads per side k (2·k² triangles).
     """
     check_variant(variant)
-    views = globals()["trajectory"](trajectory)  # the parameter shadows the function
+    views = trajectory_views(trajectory)
     # Files: the armadillo is y-up facing −z, the bunny faces −x, the lion (mounted upright by
     # lion_mesh) and the dragon statue face +z; each is turned to face the ring at the centre.
     armadillo = asset_mesh("cgal-meshes", "armadillo.off", height=0.75, rotate_y_degrees=135.0,
