@@ -12,9 +12,9 @@ precompute is the same for both, since :meth:`Scene.content_hash` ignores camera
 
 * ``near`` (default): the training orbit, 30 views on a circle of radius 2.3 at a 0.9 height
   above the look-at point; the paper's spherical training trajectories.
-* ``far``: a held-out helix, 30 views twice as far in height range (0.4 → 1.9), at radius 3.3,
-  its azimuths offset by half a step from ``near``'s, so no view repeats a training view; the
-  paper's "far views" (novel trajectories) of its Table 1.
+* ``far``: a held-out helix, 30 views at radius 3.3 rising from 0.4 to 1.9 above the look-at
+  point over one turn, its azimuths offset by half a step from ``near``'s, so no view repeats
+  a training view; the paper's "far views" (novel trajectories) of its Table 1.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 
 from prtbench import scene_params as P
+from prtbench.errors import InvalidInputError
 from prtbench.geometry import grid_plane
 from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, register_scene
 
@@ -53,8 +54,6 @@ def trajectory_views(name: str) -> Trajectory:
         return Trajectory.orbit(center=CENTER, radius=2.3, height=0.9, n_views=N_VIEWS,
                                 fov_y=45.0, start_degrees=0.0)
     if name != "far":
-        from prtbench.errors import InvalidInputError
-
         raise InvalidInputError(f"four-animals trajectory '{name}'; accepted: "
                                 f"{', '.join(TRAJECTORIES)}")
     views = []
