@@ -123,17 +123,19 @@ def bounce_matrices(scene, direct: np.ndarray, *, bounces: int, rays_per_point: 
 
     def reflected_rows(prev: np.ndarray, rows: np.ndarray, verts: np.ndarray,
                        bary: np.ndarray) -> np.ndarray:
-        """r (H, n², 3) = Σ_corners β·R_cᵀ M^{b−1}_c(corner), in batches of hits."""
-        out = np.zeros((len(rows), n2, 3))
+        """r (H, n², 3) = R_cᵀ (Σ_corners β·M^{b−1}_c(corner)), in batches of hits."""
+        out = np.empty((len(rows), n2, 3))
         for start in range(0, len(rows), _HITS_PER_BATCH):
             sl = slice(start, start + _HITS_PER_BATCH)
-            r = rows[sl]
-            for corner in range(3):
-                mats = prev[verts[sl, corner]]
-                # grey M⁰: Σ_k R_kc M_ki; coloured M^b: Σ_k R_kc M_kic.
-                term = (np.einsum("hkc,hki->hic", r, mats) if prev.ndim == 3
-                        else np.einsum("hkc,hkic->hic", r, mats))
-                out[sl] += bary[sl, corner, None, None] * term
+            shape = (-1,) + (1,) * (prev.ndim - 1)
+            mats = sum(bary[sl, corner].reshape(shape) * prev[verts[sl, corner]]
+                       for corner in range(3))  # (h, n², n²) grey or (h, n², n², 3)
+            r = rows[sl].transpose(0, 2, 1)  # (h, 3, n²)
+            if prev.ndim == 3:  # grey M⁰: Σ_k R_kc M_ki
+                out[sl] = np.matmul(r, mats).transpose(0, 2, 1)
+            else:  # coloured M^b: Σ_k R_kc M_kic
+                for c in range(3):
+                    out[sl, :, c] = np.matmul(r[:, c:c + 1, :], mats[..., c])[:, 0, :]
         return out
 
     with _progress(bounces * len(positions), f"glossy bounces {scene.name}", progress) as bar:

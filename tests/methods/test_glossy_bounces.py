@@ -207,8 +207,9 @@ def test_one_bounce_matrices_approach_the_one_bounce_reference():
         finally:
             renderer.release()
     psnr = {b: _masked_psnr(images[b], ref.image, scene, mask) for b in images}
-    # SH-truncated light through the skylight and per-vertex Gouraud shading bound both
-    # images; the one-bounce matrices must close a clear part of the gap to the reference.
+    # Measured (5 bands, 256 rays, 1676 vertices): 17.3 dB with one bounce vs 13.9 dB without
+    # against the one-bounce reference; light gain ×1.198 vs the path tracer's ×1.214.
+    # SH-truncated light through the skylight and per-vertex Gouraud shading bound both.
     assert psnr[1] > psnr[0] + 2.0, psnr
     gain = images[1][mask].mean() / images[0][mask].mean()
     direct_ref = render_reference(scene, light, view, width=width, height=height, spp=256,
