@@ -14,6 +14,8 @@ sharp as the mesh.
 * ``sloan-matrix``: per vertex Sloan's glossy transfer matrix M_ki = ∫ Y_k Y_i V max(n·ω,0) dω
   and H = M·L. Unlike TP it does not truncate V·cos before multiplying by the light, so H is
   the exact projection of L_n·V·cos (L_n: the light's n-band part); it costs n⁴ floats per vertex.
+  With ``bounces`` > 0 the matrices gain Sloan 2002 §6's interreflected light (glossy at the
+  bounce, :mod:`methods._glossy_bounces`) and become RGB: 3n⁴ floats per vertex.
 
 Materials must be constant per object (kd, ks, s); normal maps need a per-texel method.
 """
@@ -67,7 +69,11 @@ class SloanMatrixConfig:
                                    "with compress, the compressed form's stored bytes).",
                           low=1, high=1 << 40)
     visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
-                                  "(V = 1), the trivial image the regression gate must beat.")
+                                  "(V = 1, and no interreflection since no ray hits anything), the "
+                                  "trivial image the regression gate must beat.")
+    bounces: int = knob(0, "Interreflection bounces baked into the matrices (Sloan 2002 §6: "
+                           "the light other surfaces reflect, diffuse and Phong lobe); > 0 makes "
+                           "them RGB (3n⁴ floats per vertex).", low=0, high=8)
     compress: str = compress_knobs.compress_knob()
     clusters: int | None = compress_knobs.clusters_knob()
     pca_vectors: int | None = compress_knobs.pca_vectors_knob()
@@ -180,9 +186,14 @@ def _format_bytes(size: int) -> str:
     return f"{size / 2**30:.2f} GiB" if size >= 2**30 else f"{size / 2**20:.1f} MiB"
 
 
-def matrix_bytes(n_vertices: int, bands: int) -> int:
-    """Bytes of the float32 (V, n², n²) transfer-matrix buffer."""
-    return int(n_vertices) * bands**4 * 4
+def matrix_bytes(n_vertices: int, bands: int, *, channels: int = 1) -> int:
+    """Bytes of the float32 (V, n², n²) transfer-matrix buffer (× 3 channels with bounces)."""
+    return int(n_vertices) * bands**4 * 4 * int(channels)
+
+
+def matrix_channels(config) -> int:
+    """3 when ``config`` bakes interreflection (RGB matrices), else 1."""
+    return 3 if getattr(config, "bounces", 0) > 0 and config.visibility else 1
 
 
 # --- methods ----------------------------------------------------------------------------------
@@ -233,7 +244,9 @@ class _GlossyVertexMethod(Method):
             product = {"madds": 3.0 * m * n * n, "fetches": fetches, "bytes": 4.0 * fetches}
             cpu = {"madds": 3.0 * k * (1 + m) * n**4}
         elif cls._mode == MODE_MATRIX:
-            product = {"madds": 3.0 * n**4, "fetches": float(n**4), "bytes": 4.0 * n**4}
+            # RGB matrices (bounces) load three floats per (k, i), one madd each.
+            c = matrix_channels(config)
+            product = {"madds": 3.0 * n**4, "fetches": float(c * n**4), "bytes": 4.0 * c * n**4}
         else:
             loads = {"madds": 0.0, "fetches": float(n * n), "bytes": 4.0 * n * n}
             product = (cost.triple_product_counts(n) if cls._mode == MODE_TP
@@ -297,13 +310,22 @@ class SloanMatrix(_GlossyVertexMethod):
 
     @classmethod
     def cache_identity(cls, config: SloanMatrixConfig) -> dict:
-        return compress_knobs.cache_identity(super().cache_identity(config))
+        identity = compress_knobs.cache_identity(super().cache_identity(config))
+        if identity.get("bounces") == 0:
+            identity.pop("bounces")  # the knob's default keeps the existing cache keys
+        return identity
 
     @classmethod
     def validate(cls, scene, config: SloanMatrixConfig) -> None:
         super().validate(scene, config)
-        size = matrix_bytes(scene.n_vertices, config.sh_bands)
+        channels = matrix_channels(config)
+        size = matrix_bytes(scene.n_vertices, config.sh_bands, channels=channels)
         form = compress_knobs.resolve(config)
+        if form is not None and channels > 1:
+            raise InvalidInputError(
+                f"method 'sloan-matrix' bounces={config.bounces} with compress="
+                f"{config.compress}: the compressed forms hold grey matrices only; accepted: "
+                "bounces=0 with compress, or compress=none with bounces")
         if form is not None:
             from prtbench.compress import check_request
             from prtbench.config import check_memory
@@ -320,15 +342,17 @@ class SloanMatrix(_GlossyVertexMethod):
         if size > config.max_bytes:
             # The limit is stated in vertices (what the buffer grows with); the scene's
             # triangles are named too, since that is the count an asset tool shows.
-            limit = config.max_bytes // matrix_bytes(1, config.sh_bands)
+            limit = config.max_bytes // matrix_bytes(1, config.sh_bands, channels=channels)
             fit = max((b for b in range(1, config.sh_bands) if
-                       matrix_bytes(scene.n_vertices, b) <= config.max_bytes), default=None)
+                       matrix_bytes(scene.n_vertices, b, channels=channels) <= config.max_bytes),
+                      default=None)
+            floats = f"{channels} × " if channels > 1 else ""
             hint = f"use sh_bands={fit} or fewer, a coarser mesh" if fit else "use a coarser mesh"
             raise InvalidInputError(
                 f"scene '{scene.name}' has {scene.n_triangles} triangles / {scene.n_vertices} "
                 f"vertices, over sloan-matrix's limit of {limit} vertices at "
                 f"sh_bands={config.sh_bands} (max_bytes={_format_bytes(config.max_bytes)} of "
-                f"transfer matrices, V × {config.sh_bands**4} floats; this scene needs "
+                f"transfer matrices, V × {floats}{config.sh_bands**4} floats; this scene needs "
                 f"{_format_bytes(size)}); {hint}, or raise max_bytes")
 
     @classmethod
@@ -338,10 +362,20 @@ class SloanMatrix(_GlossyVertexMethod):
         meta = {"vertices": int(len(positions)), "sh_bands": config.sh_bands}
 
         def compute() -> dict[str, np.ndarray]:
-            return {"matrices": compute_transfer_matrices(
+            matrices = compute_transfer_matrices(
                 scene, positions, normals, bands=config.sh_bands,
                 rays_per_point=config.rays_per_point, seed=config.seed, progress=progress,
-                visibility=config.visibility)}
+                visibility=config.visibility)
+            if matrix_channels(config) > 1:
+                from ._glossy_bounces import bounce_matrices
+
+                matrices = bounce_matrices(scene, matrices, bounces=config.bounces,
+                                           rays_per_point=config.rays_per_point,
+                                           seed=config.seed, progress=progress)
+            return {"matrices": matrices}
+
+        if matrix_channels(config) > 1:
+            meta["bounces"] = config.bounces
 
         if form is None:
             return Artifact(cls.name, compute(), meta)
@@ -380,21 +414,28 @@ class GlossyVertexRenderer(RasterRenderer):
         data = np.ascontiguousarray(artifact.arrays[key], dtype=np.float32)
         n2 = sh_bands * sh_bands
         expected = (scene.n_vertices, n2, n2) if mode == MODE_MATRIX else (scene.n_vertices, n2)
+        # Interreflected matrices (bounces) are RGB: (V, n², n², 3), read as MATRIX_RGB.
+        rgb = mode == MODE_MATRIX and data.ndim == 4
+        if rgb:
+            expected = expected + (3,)
         if data.shape != expected:
             raise InvalidInputError(f"artifact '{key}' has shape {data.shape}; expected {expected} "
                                     f"for scene '{scene.name}' with sh_bands={sh_bands}")
         self.mode, self.sh_bands = mode, sh_bands
         super().__init__(scene, width=width, height=height, vertex_shader="vertex_glossy.vert",
                          fragment_shader="vertex_prt.frag",
-                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": mode},
+                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": mode,
+                                  **({"MATRIX_RGB": 1} if rgb else {})},
                          extra_attributes=material_attributes(scene))
         limit = int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
         if limit and data.nbytes > limit:
             RasterRenderer.release(self)
             raise InvalidInputError(
                 f"{key} buffer of {_format_bytes(data.nbytes)} exceeds this GL's shader storage "
-                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh")
-        # Vertex-major: transfer[v·n² + i] or matrices[v·n⁴ + k·n² + i].
+                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh"
+                + (" (bounces make the matrices RGB: 3× the floats)" if rgb else ""))
+        # Vertex-major: transfer[v·n² + i], matrices[v·n⁴ + k·n² + i] or, RGB,
+        # matrices[(v·n⁴ + k·n² + i)·3 + c].
         self.data_buffer = self.ctx.buffer(data.tobytes())
         self.triple = _triple.TripleProductBuffers(self.ctx, sh_bands, gamma=mode == MODE_TP)
         self._resident = [self.data_buffer]

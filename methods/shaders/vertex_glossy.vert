@@ -7,6 +7,8 @@
 // 1 = TPFL H_k = Σ_i T_i M_ik with the per-light matrix (binding 2), 2 = Sloan's transfer
 // matrix, H_k = Σ_i M_ki L_i.
 // Binding 0: per-vertex data, vertex-major float32: T (V, n²) for modes 0/1, M (V, n², n²) for 2.
+// MATRIX_RGB (mode 2, sloan-matrix with bounces): interreflected RGB matrices (V, n², n², 3),
+// H_kc = Σ_i M_kic L_ic.
 #include "prt_shading.glsl"
 
 #ifdef CPCA_OUTPUTS
@@ -34,6 +36,18 @@ void main() {
     int cluster = cpca_cluster_of(gl_VertexID);
     for (int k = 0; k < SH_COEFFS; ++k) {
         H[k] = cpca_output(gl_VertexID, cluster, k);
+    }
+#elif GLOSSY_MODE == 2 && defined(MATRIX_RGB)
+    int base = gl_VertexID * SH_COEFFS * SH_COEFFS * 3;
+    for (int k = 0; k < SH_COEFFS; ++k) {
+        vec3 sum = vec3(0.0);
+        int row = base + k * SH_COEFFS * 3;
+        for (int i = 0; i < SH_COEFFS; ++i) {
+            int at = row + i * 3;
+            sum += vec3(vertex_transfer[at], vertex_transfer[at + 1], vertex_transfer[at + 2])
+                   * light_sh[i];
+        }
+        H[k] = sum;
     }
 #elif GLOSSY_MODE == 2
     int base = gl_VertexID * SH_COEFFS * SH_COEFFS;
