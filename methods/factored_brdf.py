@@ -203,14 +203,8 @@ class FactoredBrdf(Method):
 
         out_grid, in_grid = grids(config)
         materials, of_vertex = scene_materials(scene)
-        factors = []
-        for material in materials:
-            probe = factor_brdf(material.kd, material.ks, material.shininess, terms=1,
-                                out_grid=out_grid, in_grid=in_grid, name=material.name)
-            terms = min(config.terms, probe.rank)
-            factors.append(probe if terms == 1 else factor_brdf(
-                material.kd, material.ks, material.shininess, terms=terms, out_grid=out_grid,
-                in_grid=in_grid, name=material.name))
+        factors = [factor_brdf(m.kd, m.ks, m.shininess, terms=config.terms, out_grid=out_grid,
+                               in_grid=in_grid, name=m.name, at_most=True) for m in materials]
         top = max(f.rank for f in factors)
         if config.terms > top:
             raise InvalidInputError(f"terms={config.terms} on scene '{scene.name}', whose "

@@ -159,7 +159,8 @@ def _weighted_svd(a: np.ndarray, *, terms: int) -> tuple[np.ndarray, np.ndarray,
 
 
 def factor_brdf(kd, ks, shininess: float, *, terms: int, out_grid: HemisphereGrid,
-                in_grid: HemisphereGrid, name: str = "material") -> FactoredBrdf:
+                in_grid: HemisphereGrid, name: str = "material", at_most: bool = False
+                ) -> FactoredBrdf:
     """The J = ``terms`` best separable terms of the material's cosine-weighted BRDF.
 
     Parameters
@@ -172,11 +173,13 @@ def factor_brdf(kd, ks, shininess: float, *, terms: int, out_grid: HemisphereGri
     out_grid, in_grid : HemisphereGrid
     name : str
         For the error message.
+    at_most : bool
+        Keep min(``terms``, rank) terms instead of refusing ``terms`` above the rank.
 
     Raises
     ------
     InvalidInputError
-        ``terms`` above the rank (a diffuse material has rank 1).
+        ``terms`` above the rank (a diffuse material has rank 1), unless ``at_most``.
     """
     rho = phong_cosine_matrix(kd, ks, shininess, out_grid=out_grid, in_grid=in_grid)
     w_out = np.sqrt(out_grid.solid_angles())
@@ -185,7 +188,10 @@ def factor_brdf(kd, ks, shininess: float, *, terms: int, out_grid: HemisphereGri
     if int(terms) != terms or terms < 1:
         raise InvalidInputError(f"terms={terms!r}; accepted: integers >= 1")
     s, u, v = _weighted_svd(weighted, terms=int(terms))
-    if terms > len(s):
+    if at_most:
+        terms = min(int(terms), len(s))
+        u, v = u[:, :terms], v[:, :terms]
+    elif terms > len(s):
         raise InvalidInputError(
             f"terms={terms} for material '{name}' (ks={tuple(float(c) for c in ks)}, "
             f"s={float(shininess):g}), whose sampled BRDF has rank {len(s)}; accepted: terms "

@@ -65,6 +65,9 @@ def test_a_diffuse_material_is_exactly_one_term():
     assert np.allclose(g, np.asarray(KD)[:, None, None] / np.pi, rtol=1e-10)
     with pytest.raises(InvalidInputError, match=r"terms=2 .* has rank 1; accepted: terms 1 to 1"):
         factor_brdf(KD, (0.0, 0.0, 0.0), 50.0, terms=2, **MEDIUM)
+    # A scene mixing materials keeps min(J, rank) terms of each.
+    capped = factor_brdf(KD, (0.0, 0.0, 0.0), 50.0, terms=5, at_most=True, **MEDIUM)
+    assert capped.terms == 1 and np.allclose(capped.outgoing, f.outgoing)
 
 
 def test_error_at_fixed_terms_grows_with_the_phong_exponent():
