@@ -207,9 +207,14 @@ class FactoredBrdf(Method):
                                in_grid=in_grid, name=m.name, at_most=True) for m in materials]
         top = max(f.rank for f in factors)
         if config.terms > top:
+            # A glossy material of rank 1: its lobe is narrower than the tables' cells (or
+            # s = 0, a constant lobe), so the samples see only the diffuse-like part.
+            hint = (" (a lobe narrower than the BRDF tables' cells is not sampled: a higher "
+                    "brdf_resolution may resolve it)" if top == 1 and any(
+                        max(m.ks) > 0 and m.shininess > 0 for m in materials) else "")
             raise InvalidInputError(f"terms={config.terms} on scene '{scene.name}', whose "
                                     f"sampled BRDFs have rank at most {top}; accepted: terms "
-                                    f"1 to {top}")
+                                    f"1 to {top}{hint}")
         return factors, of_vertex
 
     @classmethod
