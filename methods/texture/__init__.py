@@ -197,13 +197,14 @@ class TextureMethod(Method):
         times["dilation_s"] = time.perf_counter() - clock
         # covered / filled / texel_chart are diagnostics (seam checks), not uploaded to the GPU;
         # a compressed artifact uploads ``filled`` (which texel each signal is) with its form.
-        arrays = {"covered": gbuffer.covered.astype(np.uint8), "filled": filled.astype(np.uint8),
-                  "texel_chart": texel_chart, **atlas.arrays()}
         form = compress_knobs.resolve(config)
         fit_meta: dict[str, Any] = {}
-        if form is None:
-            arrays["transfer"] = to_storage(transfer, config.storage, what="transfer texture")
-        else:
+        arrays = ({"transfer": to_storage(transfer, config.storage, what="transfer texture")}
+                  if form is None else {})
+        arrays.update({"covered": gbuffer.covered.astype(np.uint8),
+                       "filled": filled.astype(np.uint8), "texel_chart": texel_chart,
+                       **atlas.arrays()})
+        if form is not None:
             from .compressed import texel_signals
 
             clock = time.perf_counter()
