@@ -71,8 +71,9 @@ def test_a_diffuse_material_is_exactly_one_term():
 
 
 def test_error_at_fixed_terms_grows_with_the_phong_exponent():
-    # The lecture's critique of factored BRDFs: "only less glossy materials". Measured at
-    # J = 4 on this grid: 0.06, 0.45, 0.80, 0.94 for s = 1, 10, 50, 200.
+    # The lecture's critique of factored BRDFs: "only less glossy materials". At J = 4 on
+    # factored-brdf's default grids (12 × 48 out, 24 × 96 in; kd 0.3, ks 0.5) the error is
+    # 0.06, 0.45, 0.80, 0.94 for s = 1, 10, 50, 200; this coarser grid shows the same trend.
     errors = [factor_brdf(KD, KS, s, terms=4, **MEDIUM).relative_error() for s in (1, 10, 50, 200)]
     assert all(a < b for a, b in zip(errors, errors[1:])), errors
     assert errors[0] < 0.15 and errors[-1] > 0.8, errors
