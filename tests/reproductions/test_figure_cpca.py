@@ -50,18 +50,18 @@ def test_figure_writes_panels_and_caption_from_stored_rows(tmp_path, monkeypatch
                              progress=False)
     image = imageio.read_png(png)
     assert image.shape[0] > 2 * 48 and image.shape[1] > 5 * 64  # 2 rows × 5 columns of panels
-    stored = load(results)
+    from prtbench import measurements
+    from prtbench.reproduction import Stored
+
+    report = Stored(measurements.require_report("figure", fc.FIGURE.name, profile="smoke",
+                                                results_path=results))
+    assert len(load(results)) == 4  # one result row per cell (one view each)
+    stored = report.frame()
     assert sorted(stored["label_form"]) == ["cpca", "none", "pca", "vq"]
     text = md.read_text()
     for _, row in stored.iterrows():  # caption numbers are the stored ones
         assert row["run_id"] in text and f"{row['metric_psnr_masked']:.4g}" in text
     assert "Measured with profile `smoke`" in text
     # Lossy forms differ from the uncompressed render: the error maps are not blank.
-    fig = fc.FIGURE
-    from prtbench import measurements
-    from prtbench.reproduction import Stored
-
-    report = measurements.require_report("figure", fig.name, profile="smoke",
-                                         results_path=results)
-    panels = Stored(report).images()
+    panels = report.images()
     assert all(panels[f"plants diffuse/{f}/error"].max() > 0 for f in ("pca", "vq", "cpca"))
