@@ -15,7 +15,12 @@ layout(early_fragment_tests) in;
 #include "prt_shading.glsl"
 #include "texture_normal.glsl"
 
+#ifdef CPCA_OUTPUTS
+// Compressed texels (compress = pca / vq / cpca): H straight from the form.
+#include "texture_cpca.glsl"
+#else
 uniform sampler2DArray transfer_layers;
+#endif
 #if BOUNCES > 0
 uniform sampler2DArray bounce_layers;
 #endif
@@ -43,6 +48,10 @@ void main() {
         color = vec4(0.0, 0.0, 0.0, 1.0);
         return;
     }
+    vec3 H[SH_COEFFS];
+#ifdef CPCA_OUTPUTS
+    cpca_texture_transfer(atlas_uv, texture_set, H);
+#else
     float T[SH_COEFFS];
     int base = texture_set * TRANSFER_LAYERS;
     for (int g = 0; g < TRANSFER_LAYERS; ++g) {
@@ -53,11 +62,11 @@ void main() {
             }
         }
     }
-    vec3 H[SH_COEFFS];
 #if PRODUCT_TP
     triple_product(T, light_sh, H);
 #else
     tpfl_product(T, H);
+#endif
 #endif
 #if BOUNCES > 0
     for (int b = 0; b < BOUNCES; ++b) {

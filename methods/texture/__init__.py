@@ -37,6 +37,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from prtbench.compress import knobs as compress_knobs
 from prtbench.config import check_memory, knob, memory_budget, seed_knob
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, Method, register_method
@@ -80,6 +81,9 @@ class TextureConfig:
     visibility: bool = knob(True, "Trace occlusion in the transfer. False: unshadowed transfer "
                                   "(V = 1), the trivial image the regression gate must beat; "
                                   "needs bounces=0 (no ray hits anything to bounce from).")
+    compress: str = compress_knobs.compress_knob()
+    clusters: int | None = compress_knobs.clusters_knob()
+    pca_vectors: int | None = compress_knobs.pca_vectors_knob()
 
 
 class TextureMethod(Method):
@@ -102,7 +106,15 @@ class TextureMethod(Method):
     }
 
     @classmethod
+    def cache_identity(cls, config: TextureConfig) -> dict:
+        return compress_knobs.cache_identity(super().cache_identity(config))
+
+    @classmethod
     def validate(cls, scene, config: TextureConfig) -> None:
+        from .compressed import check_form
+
+        check_form(config, sets=len(scene.objects) if config.texture_sets else 1,
+                   resolution=config.texture_resolution)
         for obj in scene.objects:
             material = obj.material
             for attr in ("kd", "ks", "shininess"):
@@ -183,15 +195,29 @@ class TextureMethod(Method):
         _, filled, texel_chart = dilate(np.zeros((sets, res, res, 1), np.float32),
                                         gbuffer.covered, gbuffer.chart, rings=config.dilation)
         times["dilation_s"] = time.perf_counter() - clock
-        # covered / filled / texel_chart are diagnostics (seam checks), not uploaded to the GPU.
-        arrays = {"transfer": to_storage(transfer, config.storage, what="transfer texture"),
-                  "covered": gbuffer.covered.astype(np.uint8), "filled": filled.astype(np.uint8),
-                  "texel_chart": texel_chart, **atlas.arrays()}
+        # covered / filled / texel_chart are diagnostics (seam checks), not uploaded to the GPU;
+        # a compressed artifact uploads ``filled`` (which texel each signal is) with its form.
+        form = compress_knobs.resolve(config)
+        fit_meta: dict[str, Any] = {}
+        arrays = ({"transfer": to_storage(transfer, config.storage, what="transfer texture")}
+                  if form is None else {})
+        arrays.update({"covered": gbuffer.covered.astype(np.uint8),
+                       "filled": filled.astype(np.uint8), "texel_chart": texel_chart,
+                       **atlas.arrays()})
+        if form is not None:
+            from .compressed import texel_signals
+
+            clock = time.perf_counter()
+            compressed, fit_meta = compress_knobs.compress_signals(
+                texel_signals(transfer, filled), form, seed=config.seed, what="texels",
+                progress=progress)
+            arrays.update(compressed)
+            times["compress_s"] = time.perf_counter() - clock
         meta: dict[str, Any] = {
             "sh_bands": config.sh_bands, "texture_resolution": res, "texture_sets": sets,
             "covered_texels": int(len(covered_index)), "filled_texels": int(filled.sum()),
             "atlas_vertices": int(len(atlas.uvs)), "storage": config.storage,
-            "bounces": int(config.bounces)}
+            "bounces": int(config.bounces), **fit_meta}
         if config.bounces > 0:
             clock = time.perf_counter()
             light = cls.bake_light(scene, config)
@@ -236,9 +262,20 @@ class TextureMethod(Method):
                    "bytes": float(fetches * taps * texel)}
         product = (cost.triple_product_counts(n) if cls.product == "tp"
                    else {"madds": cost.tpfl_product_madds(n)})
+        frame = {"bytes": cost.gamma_bytes(n) if cls.product == "tp" else 0.0}
+        form = compress_knobs.resolve(config)
+        if form is not None:
+            # texture_cpca.glsl per tap (4 bilinear, 1 nearest): an id, ⌈n′/4⌉ weight texels
+            # and (1 + n′)·n² RGB table entries, n′·n² RGB madds; per frame the CPU projects
+            # K·(1 + n′) vectors through the n² × n² × 3 matrix M.
+            k, m = form.clusters, form.pca_vectors
+            tap_fetches = float(1 + -(-m // 4) + 3 * (1 + m) * n2)
+            lookups = {"madds": 3.0 * taps * m * n2, "fetches": taps * tap_fetches,
+                       "bytes": 4.0 * taps * tap_fetches}
+            product = {}
+            frame = {"madds": 3.0 * k * (1 + m) * n2 * n2}
         shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
         per_pixel = cost.add_counts(lookups, product, shade)
-        frame = {"bytes": cost.gamma_bytes(n) if cls.product == "tp" else 0.0}
         return cost.add_counts(
             cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=14, vertex_bytes=92,
@@ -289,3 +326,6 @@ class TextureTPFL(TextureMethod):
              "textures), Algorithms 1 and 2, TPFL shading")
     light_dependence = "fixed-light"
     light_dependence_why = "folds the light into the TPFL matrix M_ik = Σ_j Γ_ijk L_j once per light"
+    #: The CPCA form of the texels (Sloan 2003) is regressed as ``texture-tpfl:cpca`` (compressed,
+    #: texture-tp renders the same images: both project the light per cluster).
+    regression_variants = {"cpca": {"compress": "cpca", "clusters": 16, "pca_vectors": 4}}

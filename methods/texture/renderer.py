@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from prtbench import gl
+from prtbench.compress import knobs as compress_knobs
 from prtbench.errors import InvalidInputError
 from prtbench.method import Artifact, FrameTimes, Renderer
 
@@ -44,11 +45,21 @@ class TextureRenderer(Renderer):
         self.ctx = ctx = gl.create_context()
         self.renderer_string = gl.renderer_string(ctx)
         arrays = artifact.arrays
-        transfer = arrays["transfer"]
         bounce = arrays.get("bounce")
-        sets, res = transfer.shape[0], transfer.shape[1]
+        self.cpca = None
+        if compress_knobs.is_compressed(arrays):  # PCA / VQ / CPCA form (.compressed)
+            from .compressed import CompressedTexels
+
+            filled = np.asarray(arrays["filled"], bool)
+            model = compress_knobs.load_model(arrays, n_signals=int(filled.sum()))
+            self.cpca = CompressedTexels(ctx, model, filled, sh_bands=self.sh_bands)
+            sets, res = filled.shape[0], filled.shape[1]
+            channels = model.dimension
+        else:
+            transfer = arrays["transfer"]
+            sets, res, channels = transfer.shape[0], transfer.shape[1], transfer.shape[-1]
         n_bounces = 0 if bounce is None else bounce.shape[0]
-        self.transfer_layers = layer_count(transfer.shape[-1])
+        self.transfer_layers = layer_count(channels)
         self.bounce_layers = layer_count(3 * self.sh_bands**2)
         max_layers = int(ctx.info["GL_MAX_ARRAY_TEXTURE_LAYERS"])
         needed = max(sets * self.transfer_layers, n_bounces * sets * self.bounce_layers)
@@ -59,6 +70,9 @@ class TextureRenderer(Renderer):
         defines = {"SH_BANDS": self.sh_bands, "PRODUCT_TP": product == "tp",
                    "TRANSFER_LAYERS": self.transfer_layers, "BOUNCES": n_bounces,
                    "BOUNCE_LAYERS": self.bounce_layers, "TEXTURE_SETS": sets}
+        if self.cpca is not None:  # the light goes through the per-cluster projection
+            defines.update(self.cpca.defines, PRODUCT_TP=False,
+                           BILINEAR=config.filtering == "bilinear")
         self.program = gl.load_program(ctx, "texture_prt.vert", "texture_prt.frag", defines=defines,
                                        search_path=[SHADER_DIR])
         self.depth_program = gl.load_program(ctx, "texture_depth.vert", "texture_depth.frag",
@@ -66,7 +80,10 @@ class TextureRenderer(Renderer):
         self._resident = []
         self._texture_bytes = 0
         filter_ = ctx.LINEAR if config.filtering == "bilinear" else ctx.NEAREST
-        self.transfer_texture = self._texture_array(rgba_layers(transfer), filter_)
+        self.transfer_texture = (self._texture_array(rgba_layers(transfer), filter_)
+                                 if self.cpca is None else None)
+        if self.cpca is not None:
+            self._resident += self.cpca.resident()
         self.bounce_texture = None
         if n_bounces:
             self.bounce_texture = self._texture_array(
@@ -76,7 +93,8 @@ class TextureRenderer(Renderer):
         self.timer = gl.GpuTimer(ctx)
         self.target = gl.RenderTarget(ctx, self.width, self.height)
         # Γ list (TP) or the per-light matrix M (TPFL), uploaded exactly as the vertex methods do.
-        self.triple = _triple.TripleProductBuffers(ctx, self.sh_bands, gamma=product == "tp")
+        self.triple = _triple.TripleProductBuffers(
+            ctx, self.sh_bands, gamma=product == "tp" and self.cpca is None)
         self._light_bound = None
 
     # -- setup ------------------------------------------------------------------------------
@@ -138,7 +156,9 @@ class TextureRenderer(Renderer):
                 f"bounce_light={light.name} (--set bounce_light={light.name})")
 
     def _bind_light(self, light) -> None:
-        if self.product == "tp":
+        if self.cpca is not None:
+            self.cpca.bind(self.program, light)
+        elif self.product == "tp":
             self.triple.bind_gamma()
             key = light.content_hash()
             if self._light_bound != key:
@@ -160,8 +180,9 @@ class TextureRenderer(Renderer):
         if "eye" in self.program:
             self.program["eye"].value = tuple(float(c) for c in view.eye)
         self._bind_light(light)
-        self.transfer_texture.use(location=0)
-        self.program["transfer_layers"].value = 0
+        if self.transfer_texture is not None:
+            self.transfer_texture.use(location=0)
+            self.program["transfer_layers"].value = 0
         if self.bounce_texture is not None:
             self.bounce_texture.use(location=1)
             self.program["bounce_layers"].value = 1
@@ -206,8 +227,10 @@ class TextureRenderer(Renderer):
     def memory_bytes(self) -> int:
         """Transfer texture arrays (all T_0 and T_b layers, RGBA, at the stored precision) plus
         the small Γ list (TP, ~9 KB at 5 bands) or TPFL matrix (7.5 KB), as the vertex methods
-        count them."""
-        return self._texture_bytes + self.triple.memory_bytes()
+        count them. Compressed: the form's textures, projection table and CPU-side means and
+        bases (:meth:`~.compressed.CompressedTexels.memory_bytes`) instead of T_0."""
+        cpca = self.cpca.memory_bytes() if self.cpca is not None else 0
+        return self._texture_bytes + self.triple.memory_bytes() + cpca
 
     def release(self) -> None:
         for obj in [self.vao, self.depth_vao, *self._mesh_buffers, self.program,

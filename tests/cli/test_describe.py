@@ -29,7 +29,7 @@ def test_list_methods_prints_each_summary_and_imports_no_heavy_backend():
     assert "HEAVY [] STATUS 0" in out
     lines = out.splitlines()[:-1]
     names = METHODS.names()
-    assert len(lines) == len(names) == 12
+    assert len(lines) == len(names) == 13
     for line, name in zip(lines, names):
         summary = METHODS.get(name).summary
         assert summary and line.split(None, 1) == [name, " ".join(summary.split())]

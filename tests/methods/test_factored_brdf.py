@@ -1,0 +1,153 @@
+"""``factored-brdf`` (Wang 2004 / Sloan 2004 in-out factored Phong BRDF, J transfer vectors per
+vertex): the diffuse case is ``vertex``, the error against the unfactored ``sloan-matrix`` falls
+with J, convergence towards the path reference, memory, bad input."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+import methods.factored_brdf as factored  # noqa: F401  (registers factored-brdf)
+import methods.vertex  # noqa: F401
+import methods.vertex_glossy  # noqa: F401
+from prtbench.cli import main
+from prtbench.errors import InvalidInputError, PrtbenchError
+from prtbench.lights import get_light
+from prtbench.method import METHODS, load_or_precompute
+from prtbench.scene import get_scene
+
+
+def _scene(variant: str, **params):
+    return get_scene("sphere-over-plane", variant=variant, sphere_segments=16,
+                     plane_subdivisions=8, **params).with_views(1)
+
+
+def _render(method, scene, *, light="sky", width=64, height=48, **overrides):
+    cls = METHODS.get(method)
+    config = cls.make_config(overrides, profile="quick")
+    cls.validate(scene, config)
+    artifact = load_or_precompute(cls, scene, config, progress=False)
+    renderer = cls.renderer(scene, artifact, config, width=width, height=height)
+    try:
+        return (renderer.render(scene.trajectory.views[0], get_light(light)),
+                renderer.memory_bytes(), artifact)
+    finally:
+        renderer.release()
+
+
+def test_one_term_on_a_diffuse_scene_renders_what_vertex_renders():
+    scene = _scene("diffuse")
+    got, memory, artifact = _render("factored-brdf", scene, terms=1, sh_bands=3,
+                                    rays_per_point=32, brdf_resolution=4)
+    want, _, _ = _render("vertex", scene, sh_bands=3, rays_per_point=32)
+    covered = want.max(axis=-1) > 0
+    assert covered.sum() > 500
+    assert np.max(np.abs(got - want)) < 1e-4 * want.max()
+    materials = len(artifact.meta["materials"])
+    assert materials == 2  # sphere and plane
+    assert artifact.meta["material_ranks"] == [1, 1]
+    assert artifact.meta["factor_error"] == [0.0, 0.0]
+    # Resident: V × 1 × 9 transfer floats and one 4 × 16 RGB table per material.
+    assert memory == scene.n_vertices * 9 * 4 + materials * 4 * 16 * 3 * 4
+
+
+def test_term_transfer_with_unit_weight_is_the_diffuse_transfer():
+    from prtbench.compress.factor import HemisphereGrid
+    from prtbench.transfer import compute_transfer
+
+    scene = _scene("glossy")
+    positions, normals, _, _ = scene.merged()
+    grid = HemisphereGrid(4, 16)
+    incoming = np.stack([np.ones((4, 16)), 2.0 * np.ones((4, 16))])[None]  # (1, 2, 4, 16)
+    got = factored.factored_transfer(scene, positions, normals, incoming=incoming,
+                                     material_of_point=np.zeros(len(positions), int),
+                                     in_grid=grid, bands=3, rays_per_point=64, progress=False)
+    want = compute_transfer(scene, positions, normals, bands=3, rays_per_point=64,
+                            progress=False, use_cache=False)
+    assert np.allclose(got[:, 0], want, atol=1e-5)
+    assert np.allclose(got[:, 1], 2.0 * want, atol=2e-5)
+
+
+def test_error_against_the_unfactored_sloan_matrix_falls_with_terms():
+    # Same bands and rays: the matrix is the unfactored glossy transfer. Measured mean relative
+    # difference 0.106 / 0.068 / 0.053 at J = 1 / 4 / 8 (the rest is the matrix's own band
+    # truncation of the lobe, which the factored form does not have).
+    scene = _scene("glossy")
+    matrix, matrix_memory, _ = _render("sloan-matrix", scene, sh_bands=3, rays_per_point=32)
+    covered = matrix.max(axis=-1) > 0
+    error, memory = {}, {}
+    for j in (1, 4, 8):
+        image, memory[j], _ = _render("factored-brdf", scene, terms=j, sh_bands=3,
+                                      rays_per_point=32, brdf_resolution=6)
+        error[j] = np.abs(image - matrix)[covered].mean() / matrix[covered].mean()
+    assert error[1] > error[4] > error[8], error
+    assert error[8] < 0.08 and error[1] > 0.09, error
+    assert memory[1] < memory[4] < memory[8]
+    # J·n² floats per vertex instead of n⁴: below the matrices while J < n².
+    assert memory[4] < matrix_memory
+
+
+def test_extreme_exponents_stay_finite_and_a_constant_lobe_is_one_term():
+    from prtbench.scene import Material, Scene, SceneObject
+
+    base = _scene("glossy")
+
+    def scene(s):
+        objects = [SceneObject(o.name, o.mesh, Material(kd=(0.2,) * 3, ks=(0.8,) * 3,
+                                                          shininess=s)) for o in base.objects]
+        return Scene("extreme", objects, trajectory=base.trajectory, exposure=1.0)
+
+    for s, terms in ((0.0, 1), (1e4, 1), (1.0, 3)):
+        image, _, _ = _render("factored-brdf", scene(s), light="sun", terms=terms, sh_bands=2,
+                              rays_per_point=16, brdf_resolution=3)
+        assert np.all(np.isfinite(image)) and image.max() > 0
+    # s = 0 is a constant lobe, (kd/π + ks/2π)·cos θi: diffuse-like, rank 1.
+    with pytest.raises(InvalidInputError, match="rank at most 1; accepted: terms 1 to 1"):
+        _render("factored-brdf", scene(0.0), terms=2, sh_bands=2, rays_per_point=16,
+                brdf_resolution=3)
+
+
+@pytest.mark.parametrize("sets, match", [
+    (["terms=2"], r"terms=2 on scene 'plants', whose materials are all diffuse .* rank 1; "
+                  r"accepted: terms=1"),
+    (["terms=9"], r"terms.*9"),
+    (["brdf_resolution=1"], r"brdf_resolution"),
+])
+def test_bad_requests_are_one_line_errors_before_any_work(sets, match, tmp_path, capsys):
+    args = ["run", "--method", "factored-brdf", "--scene", "plants", "--profile", "smoke",
+            "--variant", "diffuse", "--out", str(tmp_path / "out"),
+            "--results", str(tmp_path / "r.sqlite")]
+    for item in sets:
+        args += ["--set", item]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("prtbench: error: ") and "\n" not in err and "Traceback" not in err
+    assert re.search(match, err), err
+    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
+
+
+def test_textured_materials_are_refused_and_unknown_knobs_too():
+    from prtbench.scene import Material, Scene, SceneObject, Texture
+
+    cls = METHODS.get("factored-brdf")
+    base = _scene("glossy")
+    textured = Scene("textured", [SceneObject(o.name, o.mesh, Material(
+        kd=Texture(np.full((4, 4, 3), 0.5, np.float32)))) for o in base.objects],
+        trajectory=base.trajectory, exposure=1.0)
+    with pytest.raises(InvalidInputError, match="textured"):
+        cls.validate(textured, cls.make_config({}))
+    with pytest.raises(PrtbenchError, match="compress"):
+        cls.make_config({"compress": "cpca"})
+
+
+def test_smoke_run_beats_the_trivial_images():
+    from prtbench.regress import case_request, gate
+    from prtbench.runner import run
+
+    request = case_request("factored-brdf")  # plants glossy, 32×32 ground, sun; smoke
+    summary = run(request, progress=False, echo=False)
+    assert summary.memory_bytes > 0
+    # Flat, half-bright and the unshadowed (visibility=False) image of its own precompute.
+    assert not gate(request, summary.mean_metrics())
