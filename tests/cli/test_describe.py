@@ -24,12 +24,23 @@ def _subprocess(argv: list[str]) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
 
 
+def _declared_methods() -> set[str]:
+    import tomllib
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    with open(pyproject, "rb") as fh:
+        return set(tomllib.load(fh)["project"]["entry-points"]["prtbench.methods"])
+
+
 def test_list_methods_prints_each_summary_and_imports_no_heavy_backend():
     out = _subprocess(["list", "methods"]).stdout
     assert "HEAVY [] STATUS 0" in out
     lines = out.splitlines()[:-1]
     names = METHODS.names()
-    assert len(lines) == len(names) == 13
+    # Every method pyproject declares (the installed entry points must not lag behind it).
+    declared = _declared_methods()
+    assert len(lines) == len(names) == len(declared) and set(names) == declared
     for line, name in zip(lines, names):
         summary = METHODS.get(name).summary
         assert summary and line.split(None, 1) == [name, " ".join(summary.split())]
