@@ -167,6 +167,11 @@ class Method(ABC):
         """Raise a PrtbenchError if this method cannot handle ``scene`` with ``config``."""
 
     @classmethod
+    def validate_resolution(cls, config: Any, *, width: int, height: int) -> None:
+        """Raise a PrtbenchError if this method cannot render ``width`` × ``height`` pixels
+        with ``config`` (a fixed-view method's transport is per pixel); any by default."""
+
+    @classmethod
     @abstractmethod
     def precompute(cls, scene: "Scene", config: Any, *, progress: bool = True) -> Artifact:
         """Compute everything light-independent."""
