@@ -117,6 +117,16 @@ class WaveletImage(Method):
     regression_case = {"scene": "plants", "variant": "diffuse", "light": "sun",
                        "scene_params": {"ground_subdivisions": 32}}
 
+    fixed_view = True  # the view is part of the artifact's cache key
+    #: Knobs read only when rendering: left out of the artifact's cache key, so every
+    #: lighting approximation of one transport shares one artifact.
+    render_knobs = ("light_terms", "selection", "lighting", "sh_bands")
+
+    @classmethod
+    def cache_identity(cls, config: WaveletImageConfig) -> dict:
+        return {k: v for k, v in super().cache_identity(config).items()
+                if k not in cls.render_knobs}
+
     @classmethod
     def validate(cls, scene, config: WaveletImageConfig) -> None:
         views = len(scene.trajectory)

@@ -107,12 +107,22 @@ def test_sh_lighting_of_a_constant_light_is_the_light_and_follows_the_bands():
     assert np.allclose(sh.render(view, white), wavelet.render(view, white), rtol=1e-4, atol=1e-6)
 
 
-def test_the_view_is_fixed():
+def test_the_view_is_fixed_and_part_of_the_artifact():
+    import dataclasses
+
+    from prtbench.errors import InvalidInputError
+
     scene = get_scene("sphere-over-plane", plane_subdivisions=2).with_views(1)
-    renderer, _ = _renderer(scene, cubemap=4)
+    renderer, first = _renderer(scene, cubemap=4)
     other = View(eye=(1.0, 2.0, 4.0), target=(0.0, 0.5, 0.0))
-    with pytest.raises(Exception, match="wavelet-tp"):
+    with pytest.raises(InvalidInputError, match="wavelet-tp"):
         renderer.render(other, get_light("sky"))
+    # The same geometry seen from another view is another precompute, not a stale cache hit.
+    moved = dataclasses.replace(scene, trajectory=Trajectory((other,)))
+    again, second = _renderer(moved, cubemap=4)
+    assert not second.cache_hit and second.meta["view"] != first.meta["view"]
+    image = again.render(other, get_light("sky"))
+    assert np.count_nonzero(image.sum(-1)) == second.meta["pixels"] > 0
 
 
 def _cli_error(tmp_path, monkeypatch, capsys, extra):
