@@ -54,3 +54,4 @@ def _stored_panels(results):
     from reproductions.figure_lecture_33 import TABLE
 
     return measurements.load(TABLE, results_path=results)
+
