@@ -23,7 +23,7 @@ def _renderer(scene, *, width=48, height=36, profile="smoke", **overrides):
 def _direct_integration(scene, light, *, n: int, width: int, height: int) -> np.ndarray:
     """Σ_t L_t V(ω_t) max(n·ω_t, 0) f(ω_t, ωo) Ω_t per pixel, texel by texel: no Haar, no
     sparse storage, the BRDF of DESIGN.md §4 written out."""
-    from methods.wavelet_image import pixel_gbuffer
+    from methods._gbuffer import pixel_gbuffer
     from prtbench.raytrace import Tracer, offset_origins
     from prtbench.wavelet.cubemap import light_cubemap, texel_directions, texel_solid_angles
 
@@ -175,17 +175,29 @@ def test_smoke_run_through_the_runner_beats_the_trivial_images():
 @pytest.mark.parametrize("variant, light, floor", [("diffuse", "sun", 30.0),
                                                    ("glossy", "sky", 30.0)])
 def test_converges_to_the_path_reference_well_above_the_trivial_images(variant, light, floor):
-    """Per pixel there is no tessellation to limit it: at cubemap 32 with all terms the
-    masked PSNR against Mitsuba is far above the flat, half and unshadowed images'."""
-    from prtbench.regress import trivial_results
-    from prtbench.runner import RunRequest, run
+    """Per pixel there is no tessellation to limit it: at cubemap 32 with every term the
+    masked PSNR against Mitsuba (256 spp) is far above the flat, half and unshadowed images'
+    (diffuse: the sun's sharp shadow; glossy: the Phong highlights of the sphere and ground)."""
+    from prtbench import imageio, metrics
+    from prtbench.reference import render_reference
+    from prtbench.runner import geometry_mask
+    from prtbench.trivial import trivial_scores
 
-    request = RunRequest(method="wavelet-image", scene="sphere-over-plane", variant=variant,
-                         light=light, profile="smoke", views=1, out_dir=None,
-                         store_results=False, write_images=False,
-                         overrides={"cubemap": 32, "texel_samples": 2, "keep": 1.0,
-                                    "light_terms": 6 * 32 * 32, "storage": "float32"})
-    ours = run(request, progress=False, echo=False).mean_metrics()["psnr_masked"]
-    trivial, _ = trivial_results(request)
-    best_trivial = max(t["psnr_masked"] for t in trivial.values())
-    assert ours > floor and ours > best_trivial + 8.0, (ours, trivial)
+    scene = get_scene("sphere-over-plane", variant=variant).with_views(1)
+    view, lit = scene.trajectory.views[0], get_light(light)
+    width, height = 96, 72
+    ref = render_reference(scene, lit, view, width=width, height=height, spp=256, bounces=0)
+    mask = geometry_mask(scene, view, width, height)
+    ref_d = imageio.display(ref.image, exposure=scene.exposure)
+
+    def psnr(**overrides) -> float:
+        renderer, _ = _renderer(scene, width=width, height=height, cubemap=32, texel_samples=2,
+                                keep=1.0, light_terms=6 * 32 * 32, storage="float32",
+                                **overrides)
+        image = imageio.display(renderer.render(view, lit), exposure=scene.exposure)
+        return metrics.compute_metrics(image, ref_d, mask=mask)["psnr_masked"]
+
+    ours, unshadowed = psnr(), psnr(visibility=False)
+    trivial = [t["psnr_masked"] for t in trivial_scores(ref.image, mask,
+                                                         exposure=scene.exposure).values()]
+    assert ours > floor and ours > max(unshadowed, *trivial) + 8.0, (ours, unshadowed, trivial)

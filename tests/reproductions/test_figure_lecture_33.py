@@ -26,6 +26,7 @@ def test_wavelets_approximate_a_sun_far_better_than_sh_at_equal_terms():
 
 
 @pytest.mark.slow
+@pytest.mark.assets  # the city and sunset HDRIs
 def test_figure_writes_panels_curve_and_tables_from_the_store(tmp_path):
     from reproductions.figure_lecture_33 import FIGURE, SETTINGS
 
