@@ -137,6 +137,9 @@ class Method(ABC):
     light_dependence: ClassVar[str] = "none"
     #: Why, in one line, for ``analyze``/``advise`` reports.
     light_dependence_why: ClassVar[str] = ""
+    #: True for a method whose precompute belongs to the scene's views (per-pixel transport of
+    #: one fixed view): the views then enter the artifact's cache key.
+    fixed_view: ClassVar[bool] = False
     #: Knob settings that tie an otherwise light-free method to a light:
     #: ``{knob: (dependence, light-free value, why)}``.
     light_baking_knobs: ClassVar[Mapping[str, tuple[str, Any, str]]] = {}
@@ -165,6 +168,11 @@ class Method(ABC):
     @classmethod
     def validate(cls, scene: "Scene", config: Any) -> None:
         """Raise a PrtbenchError if this method cannot handle ``scene`` with ``config``."""
+
+    @classmethod
+    def validate_resolution(cls, config: Any, *, width: int, height: int) -> None:
+        """Raise a PrtbenchError if this method cannot render ``width`` × ``height`` pixels
+        with ``config`` (a fixed-view method's transport is per pixel); any by default."""
 
     @classmethod
     @abstractmethod
@@ -230,6 +238,12 @@ def artifact_key(method_cls: type[Method], scene: "Scene", config: Any) -> str:
     # Duck-typed method classes (tests' stand-ins) need not derive from Method.
     identity = getattr(method_cls, "cache_identity", None)
     values = identity(config) if identity is not None else config_mod.to_dict(config)
+    if getattr(method_cls, "fixed_view", False):  # a per-pixel precompute: the view is an input
+        from dataclasses import asdict
+
+        views = [asdict(v) for v in scene.trajectory.views]
+        return content_key(method_cls.name, method_cls.precompute_version, scene.content_hash(),
+                           values, views)
     return content_key(method_cls.name, method_cls.precompute_version, scene.content_hash(),
                        values)
 

@@ -200,6 +200,9 @@ def prepare(request: RunRequest) -> PreparedRun:
     scene = resolve_views(scene, profile, request.views)
     width, height = request.resolution or (profile.width, profile.height)
     method_cls.validate(scene, config)
+    check_resolution = getattr(method_cls, "validate_resolution", None)
+    if check_resolution is not None:  # a fixed-view method precomputes per pixel
+        check_resolution(config, width=width, height=height)
     if reference_method is not None:
         reference_method[0].validate(scene, reference_method[1])
     check_outputs(request)

@@ -23,6 +23,7 @@ transport, which Ng 2003 also quantises (:mod:`prtbench.wavelet.sparse`).
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,6 +77,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
                               storage: str = "float32", visibility: bool = True,
                               progress: bool = True, tracer: Tracer | None = None,
                               cosine: bool = True,
+                              lobes: Callable[[slice, np.ndarray], np.ndarray] | None = None,
+                              n_lobes: int = 1,
                               ) -> tuple[SparseTransport, dict[str, float]]:
     """Per-point Haar transport, truncated to ``keep`` coefficients and stored sparse.
 
@@ -104,11 +107,18 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         visible fraction V_t alone (front-facing unoccluded subsamples / S², no cosine, no
         weight), the visibility factor of Ng 2004's triple product (``wavelet-tp``), whose
         BRDF factor carries the cosine and the solid angles.
+    lobes : callable, optional
+        ``lobes(sl, dirs_t) -> (c, n_lobes, R)`` float32 per-ray factors of the points ``sl``
+        (c of them) for the ray directions ``dirs_t`` (3, R), texel-major: each lobe is its
+        own transport row, ``V·max(n·ω, 0)·lobe(ω)`` (e.g. a BRDF term for a fixed view, as
+        ``wavelet-image`` does). The rays are traced once for all lobes.
+    n_lobes : int
+        Lobes ``lobes`` returns (1 without ``lobes``).
 
     Returns
     -------
     transport : SparseTransport
-        P × 6N².
+        P × 6N², or (P·n_lobes) × 6N² with ``lobes`` (row p·n_lobes + l: point p, lobe l).
     stats : dict
         ``rays`` traced, ``candidate_rays`` (before the cull), ``trace_s`` (seconds inside
         embree, summed over threads).
@@ -139,7 +149,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
     per_point = len(dirs32)
     dirs_t = np.ascontiguousarray(dirs32.T)
     nrm32 = nrm.astype(np.float32)
-    chunks = parallel_chunks(len(p), max(1, MAX_RAYS_PER_CHUNK // per_point))
+    n_lobes = int(n_lobes) if lobes is not None else 1
+    chunks = parallel_chunks(len(p), max(1, MAX_RAYS_PER_CHUNK // (per_point * n_lobes)))
 
     def chunk(sl: slice):
         cos = cosines(nrm32[sl], dirs_t)  # (c, M·S²)
@@ -162,6 +173,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         else:
             cos = front.astype(np.float32)  # V per ray; / S² makes the texel mean below
             cos *= np.float32(1.0 / ss)
+        if lobes is not None:  # one transport row per (point, lobe), the rays traced once
+            cos = (cos[:, None, :] * lobes(sl, dirs_t)).reshape(-1, per_point)
         t = cos.reshape(len(cos), 6, n, n, ss)
         if ss > 1:  # texel integrals (solid angle folded in), accumulated in float64
             t = t.sum(axis=-1, dtype=np.float64)
@@ -173,7 +186,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         else:
             idx, vals = np.broadcast_to(np.arange(m, dtype=np.int32), c.shape), c
         nonzero = vals != 0
-        rows = np.broadcast_to(np.arange(sl.start, sl.stop, dtype=np.int32)[:, None], idx.shape)
+        rows = np.broadcast_to(np.arange(sl.start * n_lobes, sl.stop * n_lobes,
+                                         dtype=np.int32)[:, None], idx.shape)
         return rows[nonzero], idx[nonzero], vals[nonzero], traced, seconds
 
     parts, stats = [], {"rays": 0, "candidate_rays": int(len(p) * per_point), "trace_s": 0.0}
@@ -186,6 +200,7 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
             bar.update(sl.stop - sl.start)
     rows, cols, vals = (np.concatenate([q[i] for q in parts]) if parts else np.zeros(0, dt)
                         for i, dt in enumerate((np.int32, np.int32, np.float32)))
-    transport = SparseTransport.from_entries(rows, cols, vals, n_points=len(p), n_coeffs=m,
+    transport = SparseTransport.from_entries(rows, cols, vals, n_points=len(p) * n_lobes,
+                                             n_coeffs=m,
                                              storage=storage)
     return transport, stats
