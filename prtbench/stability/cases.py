@@ -253,10 +253,16 @@ _BUILT: dict[tuple, Any] = {}
 
 
 def case_base_scene(name: str, variant: str, params: Mapping[str, Any]):
-    """The built (registered or file) scene ``name``; cached for the planning process."""
+    """The built (registered or file) scene ``name``; cached for the planning process (a file
+    by its path, size and modification time)."""
+    from pathlib import Path
+
     from ..scene import get_scene
 
     key = (str(name), variant, tuple(sorted((k, str(v)) for k, v in params.items())))
+    if Path(str(name)).is_file():
+        stat = Path(str(name)).stat()
+        key += (stat.st_size, stat.st_mtime_ns)
     if key not in _BUILT:
         _BUILT[key] = get_scene(name, variant=variant, **dict(params))
     return _BUILT[key]

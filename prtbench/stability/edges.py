@@ -110,6 +110,7 @@ def sdf_cases() -> list[Case]:
     """The distance field scaled by :data:`SDF_DISTANCE_FACTOR` (SDF base scenes)."""
     f = SDF_DISTANCE_FACTOR
     return [Case(f"sdf-gradient={f:g}", "scene", distance_factor=f, compare_image=True,
+                 timeout_factor=LARGE_MESH_TIMEOUT_FACTOR,  # its training data is retraced
                  note=f"the distance field multiplied by {f:g} (|∇d| = {f:g}, sphere tracing "
                       f"needs {1 / f:g}x the steps; the surface is unchanged)",
                  advice="keep the field Euclidean (|∇d| near 1), or raise max_steps and divide "
