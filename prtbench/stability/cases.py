@@ -64,12 +64,17 @@ def _both(*values: Any) -> dict[str, tuple[Any, ...]]:
     return {"smoke": tuple(values), "quick": tuple(values)}
 
 
+#: Values of the token ``"all"`` of a rule: the knob's largest meaningful value for the moderate
+#: config (a declared ``high`` is often a bound over every config, not this one's maximum).
+ALL_VALUES = {"light_terms": lambda config: 6 * int(config.cubemap) ** 2}
+
 #: Knob name -> its extremes. A knob a method lacks contributes nothing.
 KNOB_RULES: dict[str, KnobRule] = {
     "sh_bands": KnobRule({"smoke": ("low", "high"), "quick": ("low", 2, "high")},
                          "SH band count at the ends of the method's range",
                          "use 3-5 bands (the moderate setting): 1-2 bands lose the shadow"),
-    "storage": KnobRule(_both("float16"), "half-float transfer textures (overflow/underflow)",
+    "storage": KnobRule(_both("float16", "int8"),
+                        "half-float (or 8-bit scaled) stored transfer (overflow/underflow)",
                         "store float32 where coefficients exceed 65504 or matter below 6e-5",
                         "storage", lights=("huge-constant",)),
     "precision": KnobRule(_both("float16"), "half-float probe radiance (overflow/underflow)",
@@ -87,9 +92,17 @@ KNOB_RULES: dict[str, KnobRule] = {
                            "use >= 8 probes per axis", "storage"),
     "normal_bias": KnobRule(_both("low", "high"), "probe lookup bias at 0 and 4 cells",
                             "keep normal_bias near 0.5 cells"),
-    "invalid_backface_fraction": KnobRule(_both("low"),
-                                          "every probe that sees a back face is invalid",
+    "invalid_backface_fraction": KnobRule(_both("low", "high"),
+                                          "every probe that sees a back face is invalid (0), "
+                                          "or none is, even inside geometry (1)",
                                           "keep invalid_backface_fraction near 0.25"),
+    "light_terms": KnobRule(_both("low", "all"),
+                            "wavelet lighting terms k = 1, and k = all (every coefficient of "
+                            "the cubemap: no lighting approximation)",
+                            "use k of 50-200 terms: k = 1 keeps only the light's mean"),
+    "keep": KnobRule(_both(1.0), "every transport wavelet coefficient kept (no truncation)",
+                     "keep 0.1-0.25 of the coefficients: all of them costs 4-10x the memory",
+                     "storage"),
     "bounces": KnobRule(_both("high"), "the most interreflection bounces the knob accepts",
                         "use 1-2 bounces: later ones add little light for much more precompute"),
     "ridge": KnobRule(_both("low", "high"), "transfer-matrix ridge of 0 and 1e6",
@@ -153,7 +166,20 @@ class Case:
         (zero-area and sliver triangles added to the ground), ``t-junction`` (a T-junction
         on the ground) or ``coincident`` (the ground duplicated in place).
     scene : str
-        Another registered scene (its default parameters) instead of the base scene.
+        Another registered scene instead of the base scene (a case that needs its own
+        construction: the note says so).
+    scene_params : dict
+        Builder parameters of ``scene`` (default: its defaults), or, without ``scene``, on top
+        of the base scene's.
+    distance_factor : float
+        An SDF scene's distance field multiplied by this (|∇d| = factor: sphere tracing takes
+        1/factor times more steps); the surface, its mesh and the reference are unchanged.
+    derived : dict
+        Config knobs whose value is derived from the case's scene and moderate artifact when
+        the case runs (:func:`prtbench.stability.run.derive_overrides`): ``"signals"`` (the
+        scene's vertex count) or ``"dimension"`` (the stored transfer's values per vertex).
+    timeout_factor : float
+        The case may run this many times the profile's timeout (large scenes, not hangs).
     note, advice : str
         What the case probes; what to do instead when it is degraded.
     compare_image : bool
@@ -170,12 +196,17 @@ class Case:
     translate: float = 0.0
     geometry: str = ""
     scene: str = ""
+    scene_params: Mapping[str, Any] = field(default_factory=dict)
+    distance_factor: float = 1.0
+    derived: Mapping[str, str] = field(default_factory=dict)
+    timeout_factor: float = 1.0
     note: str = ""
     advice: str = ""
     compare_image: bool = False
 
     def to_json(self) -> dict[str, Any]:
-        return {**dataclasses.asdict(self), "overrides": dict(self.overrides)}
+        return {**dataclasses.asdict(self), "overrides": dict(self.overrides),
+                "scene_params": dict(self.scene_params), "derived": dict(self.derived)}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> "Case":
@@ -190,30 +221,59 @@ def _format_value(value: Any) -> str:
     return str(value)
 
 
-def base_case(method_cls) -> dict[str, Any]:
+def base_case(method_cls, *, scene_file: str | None = None,
+              scene_params: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Scene, variant, scene params, light and config overrides of ``method_cls``'s moderate case.
 
     ``sphere-over-plane`` (:data:`BASE_SCENE`) unless the method refuses it (e.g. it needs an
-    SDF scene), then the method's regression scene; the regression case's config overrides
-    always apply (they make the smoke profile's training or lighting meaningful).
+    SDF scene), then the method's regression scene; with ``scene_file``, that file (with
+    ``scene_params``), whether the method accepts it or not (a refusal is the answer). The
+    regression case's config overrides always apply (they make the smoke profile's training
+    or lighting meaningful). ``label`` names the base scene in rows and reports.
     """
     from ..regress import regression_case
 
     regression = regression_case(method_cls)
-    base = {**BASE_SCENE, "overrides": dict(regression.get("overrides", {}))}
+    overrides = dict(regression.get("overrides", {}))
+    if scene_file is not None:
+        scene = case_base_scene(scene_file, "diffuse", scene_params or {})
+        return {"scene": str(scene_file), "variant": "diffuse", "light": "sky",
+                "scene_params": dict(scene_params or {}), "overrides": overrides,
+                "label": scene.name, "file": True}
+    base = {**BASE_SCENE, "overrides": overrides}
     if not _accepts(method_cls, base["scene"], "diffuse", base["scene_params"]):
         base.update(scene=regression["scene"], variant="diffuse",
                     scene_params=dict(regression.get("scene_params", {})))
+    base["label"] = base["scene"]
     return base
 
 
-def _accepts(method_cls, scene: str, variant: str, scene_params: Mapping[str, Any]) -> bool:
-    """Whether ``method_cls`` validates ``scene`` (default config); building it is cheap here."""
+#: Scenes built while planning, by (name, variant, params): a file is imported once.
+_BUILT: dict[tuple, Any] = {}
+
+
+def case_base_scene(name: str, variant: str, params: Mapping[str, Any]):
+    """The built (registered or file) scene ``name``; cached for the planning process (a file
+    by its path, size and modification time)."""
+    from pathlib import Path
+
     from ..scene import get_scene
 
+    key = (str(name), variant, tuple(sorted((k, str(v)) for k, v in params.items())))
+    if Path(str(name)).is_file():
+        stat = Path(str(name)).stat()
+        key += (stat.st_size, stat.st_mtime_ns)
+    if key not in _BUILT:
+        _BUILT[key] = get_scene(name, variant=variant, **dict(params))
+    return _BUILT[key]
+
+
+def _accepts(method_cls, scene: str, variant: str, scene_params: Mapping[str, Any],
+             overrides: Mapping[str, Any] | None = None) -> bool:
+    """Whether ``method_cls`` validates ``scene`` (smoke config plus ``overrides``)."""
     try:
-        method_cls.validate(get_scene(scene, variant=variant, **dict(scene_params)),
-                            method_cls.make_config(profile="smoke"))
+        method_cls.validate(case_base_scene(scene, variant, scene_params),
+                            method_cls.make_config(dict(overrides or {}), profile="smoke"))
     except PrtbenchError:
         return False
     return True
@@ -229,14 +289,17 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
             continue
         seen = {getattr(moderate, f.name)}
         for token in rule.values[profile]:
-            value = f.metadata.get(token) if token in ("low", "high") else token
+            if token == "all":
+                value = ALL_VALUES[f.name](moderate)
+            else:
+                value = f.metadata.get(token) if token in ("low", "high") else token
             if value is None or value in seen:
                 continue
             choices = f.metadata.get("choices")
             if choices is not None and value not in choices:
                 continue
             seen.add(value)
-            name = f"{f.name}={_format_value(value)}"
+            name = f"{f.name}={'all' if token == 'all' else _format_value(value)}"
             cases.append(Case(name, rule.group, overrides={f.name: value}, note=rule.note,
                               advice=rule.advice, compare_image=True))
             cases += [Case(f"{name} light={light}", rule.group, overrides={f.name: value},
@@ -261,8 +324,16 @@ SCALE_ADVICE = ("model the scene in units where its bounds diagonal is 0.01..1e6
                 "near the origin")
 
 
-def scene_cases(*, profile: str, sdf: bool) -> list[Case]:
-    """Scale, translation and geometry cases (SDF scenes: scale and translation only)."""
+#: Geometry cases that edit or look along the base scene's ``ground`` object.
+NEEDS_GROUND = ("grazing", "edge-on", "degenerate", "t-junction", "coincident")
+
+
+def scene_cases(*, profile: str, sdf: bool, ground: bool = True) -> list[Case]:
+    """Scale, translation and geometry cases (SDF scenes: scale and translation only).
+
+    Without a ``ground`` object in the base scene (a file imported without ``ground=true``),
+    the cases of :data:`NEEDS_GROUND` run on the built-in :data:`BASE_SCENE` instead, and say so.
+    """
     cases = [Case("scale=1e-04", "scene", scale=1e-4, note="scene scaled by 1e-4",
                   advice=SCALE_ADVICE, compare_image=True),
              Case("scale=1e-02", "scene", scale=1e-2,
@@ -293,7 +364,13 @@ def scene_cases(*, profile: str, sdf: bool) -> list[Case]:
                  "remove coincident surfaces")]
     if profile == "smoke":
         geometry = [g for g in geometry if g[0] in ("grazing", "edge-on", "degenerate")]
-    return cases + [Case(f"geometry={name}", "scene", geometry=name, note=note, advice=advice)
+    built_in = {"scene": BASE_SCENE["scene"], "scene_params": dict(BASE_SCENE["scene_params"])}
+    elsewhere = (f" (on the built-in {BASE_SCENE['scene']}: the base scene has no object named "
+                 "'ground'; a file scene gets one with --scene-param ground=true)")
+    return cases + [Case(f"geometry={name}", "scene", geometry=name,
+                         note=note + ("" if ground or name not in NEEDS_GROUND else elsewhere),
+                         advice=advice,
+                         **({} if ground or name not in NEEDS_GROUND else built_in))
                     for name, note, advice in geometry]
 
 
@@ -321,18 +398,29 @@ MODERATE = Case("moderate", "moderate", note="the method's moderate setting (the
                 compare_image=False)
 
 
-def method_cases(method_cls, *, profile: str) -> list[Case]:
-    """The moderate case first, then every case that applies to ``method_cls``."""
+def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
+                 scene_params: Mapping[str, Any] | None = None) -> list[Case]:
+    """The moderate case first, then every case that applies to ``method_cls``.
+
+    With ``scene_file`` the base scene is that file (:func:`base_case`); a method that refuses
+    it gets the moderate case only (its refusal is the answer, and every other case would
+    repeat it).
+    """
+    from . import edges
+
     if profile not in PROFILES:
         from ..errors import UnknownNameError
 
         raise UnknownNameError("stability profile", profile, PROFILES)
-    base = base_case(method_cls)
-    from ..scene import get_scene
-
-    scene = get_scene(base["scene"], variant=base["variant"], **base["scene_params"])
+    base = base_case(method_cls, scene_file=scene_file, scene_params=scene_params)
+    if base.get("file") and not _accepts(method_cls, base["scene"], base["variant"],
+                                         base["scene_params"]):
+        return [MODERATE]
+    scene = case_base_scene(base["scene"], base["variant"], base["scene_params"])
+    has_ground = any(o.name == "ground" for o in scene.objects)
     cases = [MODERATE, *knob_cases(method_cls, profile=profile), *light_cases(profile=profile),
-             *scene_cases(profile=profile, sdf=scene.sdf is not None)]
+             *scene_cases(profile=profile, sdf=scene.sdf is not None, ground=has_ground)]
+    cases += edges.method_edge_cases(method_cls, base=base, scene=scene, profile=profile)
     if scene.sdf is None:
         cases += learning_cases(method_cls)
     if scene.sdf is None and _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):

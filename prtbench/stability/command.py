@@ -27,10 +27,12 @@ def run_command(args: argparse.Namespace) -> int:
         from ..errors import InvalidInputError
 
         raise InvalidInputError(f"--timeout {args.timeout}; accepted: seconds > 0")
-    from .matrix import CORE
+    from .matrix import CORE, table_name
 
-    methods = args.method or [*METHODS.names(), CORE]
+    scene_file, scene_params, label = _scene(args)  # a bad file fails here, before any work
+    methods = args.method or ([*METHODS.names()] if scene_file else [*METHODS.names(), CORE])
     results = Path(args.results) if args.results else None
+    stem = f"table-stability-{label}" if label else "table-stability"
     outputs.check_folder("--reports", Path(args.reports))
     if args.json:
         outputs.check_file("--json", Path(args.json))
@@ -38,25 +40,50 @@ def run_command(args: argparse.Namespace) -> int:
         from .matrix import stored_rows
 
         return _write(stored_rows(profile=args.profile, results_path=results,
-                                  partial=args.partial), args, None)
+                                  partial=args.partial, table=table_name(label)), args, None,
+                      stem=stem)
     if args.out:
         outputs.check_folder("--out", Path(args.out))
     outputs.check_results_store("--results", results or default_path())
     outputs.check_cache()
-    plan(methods, profile=args.profile, cases=args.case)  # unknown names fail here
-    print(f"[stability] profile={args.profile} methods={','.join(methods)}", file=sys.stderr)
+    plan(methods, profile=args.profile, cases=args.case, scene_file=scene_file,
+         scene_params=scene_params)  # unknown names fail here
+    print(f"[stability] profile={args.profile} methods={','.join(methods)}"
+          + (f" scene={label}" if label else ""), file=sys.stderr)
     run_id = run_matrix(methods, profile=args.profile, results_path=results,
                         out_dir=Path(args.out) if args.out else None, cases=args.case,
-                        timeout_s=args.timeout, echo=not args.quiet)
-    return _write(load_rows(run_id, results_path=results), args, run_id)
+                        timeout_s=args.timeout, echo=not args.quiet, scene_file=scene_file,
+                        scene_params=scene_params)
+    return _write(load_rows(run_id, results_path=results, table=table_name(label)), args,
+                  run_id, stem=stem)
 
 
-def _write(rows, args: argparse.Namespace, run_id: str | None) -> int:
+def _scene(args: argparse.Namespace):
+    """``(scene, params, label)`` of ``--scene`` (all None without it), the scene built once so
+    that a missing, unreadable or absurd file is a one-line error before anything is written.
+    The label is the built scene's name (a file's carries its content hash)."""
+    if not args.scene:
+        if args.scene_param:
+            from ..errors import InvalidInputError
+
+            raise InvalidInputError("--scene-param without --scene; accepted: --scene PATH "
+                                    "--scene-param KEY=VALUE")
+        return None, None, None
+    from ..config import parse_overrides
+    from .cases import case_base_scene
+
+    params = parse_overrides(args.scene_param or [])
+    scene = case_base_scene(args.scene, "diffuse", params)
+    return args.scene, params, scene.name
+
+
+def _write(rows, args: argparse.Namespace, run_id: str | None, *,
+           stem: str = "table-stability") -> int:
     """Reports (and JSON) of ``rows``; 1 when any row failed."""
     from .. import strict_json
     from .report import method_summary, write_reports
 
-    for path in write_reports(rows, Path(args.reports)):
+    for path in write_reports(rows, Path(args.reports), stem=stem):
         print(f"wrote {path}")
     if args.json:
         from ..cache import atomic_path
@@ -83,6 +110,11 @@ def add_parser(sub) -> None:
                    help="only these methods, or sh-core (default: every method and sh-core)")
     p.add_argument("--profile", default="quick", help="smoke or quick (default quick)")
     p.add_argument("--case", action="append", help="only these cases (the moderate one always runs)")
+    p.add_argument("--scene", default=None,
+                   help="an asset file (.glb/.gltf/.obj/.ply/.off/.stl) or scene name as every "
+                        "method's base scene; the report is table-stability-<scene name>.*")
+    p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
+                   help="import parameter of --scene (files: scale, up, ground)")
     p.add_argument("--json", default=None, help="also write the rows here (strict JSON)")
     p.add_argument("--results", default=None, help="results database (default results/prtbench.sqlite)")
     p.add_argument("--reports", default="reports", help="folder of table-stability.{md,csv}")

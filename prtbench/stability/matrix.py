@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,14 +29,29 @@ def _log(echo: bool, text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
 
-def plan(methods: Sequence[str], *, profile: str,
-         cases: Sequence[str] | None = None) -> list[tuple[str, dict[str, Any], list[Case]]]:
+def table_name(scene_label: str | None = None) -> str:
+    """The measurement table (and report run) of a matrix: :data:`TABLE` on the built-in base
+    scenes, ``stability-<scene name>`` on a file scene (whose name carries its content hash),
+    so a user's scene never mixes into the committed report's rows."""
+    return TABLE if not scene_label else f"{TABLE}-{scene_label}"
+
+
+def plan(methods: Sequence[str], *, profile: str, cases: Sequence[str] | None = None,
+         scene_file: str | None = None, scene_params: Mapping[str, Any] | None = None,
+         ) -> list[tuple[str, dict[str, Any], list[Case]]]:
     """``(method, base case, cases)`` for each method, validated before any work.
+
+    Parameters
+    ----------
+    scene_file : str, optional
+        An asset file (``--scene``) as every method's base scene, with ``scene_params``.
 
     Raises
     ------
     UnknownNameError
         An unknown method, profile or case name.
+    InvalidInputError
+        A scene file that cannot be imported (the scenefile message).
     """
     from ..method import METHODS
 
@@ -46,20 +61,23 @@ def plan(methods: Sequence[str], *, profile: str,
         if method == CORE:
             continue
         cls = METHODS.get(method)
-        all_cases = method_cases(cls, profile=profile)
+        all_cases = method_cases(cls, profile=profile, scene_file=scene_file,
+                                 scene_params=scene_params)
         known |= {c.name for c in all_cases}
         chosen = [c for c in all_cases if not cases or c.name == "moderate" or c.name in cases]
-        out.append((method, base_case(cls), chosen))
+        out.append((method, base_case(cls, scene_file=scene_file, scene_params=scene_params),
+                    chosen))
     missing = [name for name in cases or () if name not in known]
     if missing:  # a case name must belong to at least one of the methods
         select([Case(n, "") for n in sorted(known)], missing)  # raises, listing the names
-    return out
     return out
 
 
 def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | None,
                out_dir: Path | None = None, cases: Sequence[str] | None = None,
-               timeout_s: float | None = None, echo: bool = True) -> str:
+               timeout_s: float | None = None, echo: bool = True,
+               scene_file: str | None = None,
+               scene_params: Mapping[str, Any] | None = None) -> str:
     """Measure every case of ``methods``; returns the report run's id.
 
     Parameters
@@ -77,12 +95,17 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
         Per-case limit (default :data:`prtbench.stability.run.TIMEOUTS`).
     echo : bool
         One progress line per case on stderr.
+    scene_file, scene_params : optional
+        An asset file as the base scene (:func:`plan`); its rows go to
+        :func:`table_name` of the scene's name.
     """
     from .. import measurements
     from ..runner import device_description
     from .run import run_case
 
-    planned = plan(methods, profile=profile, cases=cases)
+    planned = plan(methods, profile=profile, cases=cases, scene_file=scene_file,
+                   scene_params=scene_params)
+    table = table_name(planned[0][1]["label"] if scene_file and planned else None)
     run_id = measurements.new_run_id()
     members: dict[str, dict[str, str]] = {}
     device = device_description()
@@ -102,13 +125,14 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                     moderate, moderate_exr = measured, measured.get("image_exr")
                 row = {"method": method, "case": case.name, "group": case.group,
                        "note": case.note, "advice": case.advice,
-                       "overrides": dict(case.overrides), "scene": case.scene or base["scene"],
+                       "overrides": {**case.overrides, **measured.get("derived_overrides", {})},
+                       "scene": case.scene or base.get("label", base["scene"]),
                        "variant": "glossy" if case.shininess is not None else base["variant"],
                        "outcome": outcome, "reason": reason,
                        "moderate_psnr_masked": (moderate or {}).get("psnr_masked"),
                        "moderate_flip_masked": (moderate or {}).get("flip_masked"),
                        **{k: v for k, v in measured.items() if k != "image_exr"}}
-                measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
+                measurements.record(table, [row], results_path=results_path, run_id=run_id,
                                     profile=profile, renderer=measured.get("renderer") or "",
                                     device=device)
                 if measured.get("run_id"):
@@ -119,26 +143,27 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
         from .core import core_rows
 
         for row in core_rows(profile=profile):
-            measurements.record(TABLE, [row], results_path=results_path, run_id=run_id,
+            measurements.record(table, [row], results_path=results_path, run_id=run_id,
                                 profile=profile, device=device)
             _log(echo, f"[stability] {CORE} {row['case']}: {row['outcome']} ({row['reason']})")
-    measurements.complete_report("table", TABLE, profile=profile, run_id=run_id,
+    measurements.complete_report("table", table, profile=profile, run_id=run_id,
                                  members=members, results_path=results_path)
     return run_id
 
 
-def load_rows(run_id: str, *, results_path: Path | None) -> list[dict[str, Any]]:
-    """The stored rows of one matrix run, in the order they were measured."""
+def load_rows(run_id: str, *, results_path: Path | None,
+              table: str = TABLE) -> list[dict[str, Any]]:
+    """The stored rows of one matrix run (of measurement ``table``), in measured order."""
     from .. import measurements
 
-    frame = measurements.load(TABLE, run_ids=[run_id], results_path=results_path)
+    frame = measurements.load(table, run_ids=[run_id], results_path=results_path)
     rows = frame.to_dict(orient="records")
     return [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()}
             for r in rows]
 
 
-def stored_rows(*, profile: str, results_path: Path | None,
-                partial: bool = False) -> list[dict[str, Any]]:
+def stored_rows(*, profile: str, results_path: Path | None, partial: bool = False,
+                table: str = TABLE) -> list[dict[str, Any]]:
     """The newest stored row of each (method, case) for ``profile`` (SH core rows last).
 
     Matrix runs over different methods or cases (e.g. run side by side) are merged; each row
@@ -156,11 +181,11 @@ def stored_rows(*, profile: str, results_path: Path | None,
 
     complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
         results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
-        "profile = ?", [TABLE, profile])}
+        "profile = ?", [table, profile])}
     # Every run with rows, newest first (by its last row).
     runs = [r[0] for r in measurements._read(  # noqa: SLF001
         results_path, "SELECT run_id FROM measurements WHERE name = ? AND profile = ? "
-        "GROUP BY run_id ORDER BY MAX(id) DESC", [TABLE, profile])]
+        "GROUP BY run_id ORDER BY MAX(id) DESC", [table, profile])]
     runs = [r for r in runs if partial or r in complete]
     if not runs:
         path = measurements.store_path(results_path)
@@ -169,7 +194,7 @@ def stored_rows(*, profile: str, results_path: Path | None,
                             f"prtbench stability --profile {profile} --results {path}")
     chosen: dict[tuple[str, str], dict[str, Any]] = {}
     for run in runs:  # newest first: the first row of a (method, case) wins
-        for row in load_rows(run, results_path=results_path):
+        for row in load_rows(run, results_path=results_path, table=table):
             chosen.setdefault((row["method"], row["case"]),
                               {**row, "partial_run": run not in complete})
     methods = sorted({m for m, _ in chosen}, key=lambda m: (m == CORE, m))

@@ -88,9 +88,10 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "render, where the case renders the same picture (knobs, scale, translation). "
              "`peak / max`: the artifact's largest |value| and its storage type's maximum; "
              "`over`/`under`: values above that maximum / non-zero below its smallest normal.",
-             "", "Not in the catalogue yet: a 10⁶-triangle mesh for the per-vertex methods, SDF "
-             "sphere tracing with |∇d| ≪ 1, wavelet k = 1 / all (no wavelet method is "
-             "registered).", "", "## Summary", ""]
+             "", "Method-specific edges (prtbench/stability/edges.py): a 10⁶-triangle mesh for "
+             "the per-vertex methods (precompute time, peak RSS), CPCA with K = N, n′ = 0 and "
+             "n′ = d, probes inside a solid block, SDF sphere tracing with |∇d| = 0.01; wavelet "
+             "k = 1 / all and keep = 1 are knob cases.", "", "## Summary", ""]
     lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
     partial = [m for m in methods if any(r.get("partial_run") for r in rows if r["method"] == m)]
     if partial:
@@ -150,13 +151,18 @@ def format_csv(rows: Sequence[Mapping[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path) -> tuple[Path, Path]:
-    """Write ``table-stability.md`` and ``.csv`` into ``folder`` atomically; their paths."""
+def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path, *,
+                  stem: str = "table-stability") -> tuple[Path, Path]:
+    """Write ``<stem>.md`` and ``<stem>.csv`` into ``folder`` atomically; their paths.
+
+    A file scene's matrix uses ``table-stability-<scene name>`` (the name carries the file's
+    content hash), so it never overwrites the committed ``table-stability.*``.
+    """
     from ..cache import atomic_path
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    md, csv_path = folder / "table-stability.md", folder / "table-stability.csv"
+    md, csv_path = folder / f"{stem}.md", folder / f"{stem}.csv"
     for path, text in ((md, format_markdown(rows)), (csv_path, format_csv(rows))):
         with atomic_path(path) as tmp:
             tmp.write_text(text)

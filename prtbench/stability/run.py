@@ -87,7 +87,8 @@ def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
 
     light = LIGHTS[case.light].build() if case.light else base["light"]
     variant = "glossy" if case.shininess is not None else base["variant"]
-    params = {} if case.scene else dict(base.get("scene_params", {}))
+    params = (dict(case.scene_params) if case.scene else
+              {**base.get("scene_params", {}), **case.scene_params})
     return RunRequest(method=method, scene=case.scene or base["scene"], variant=variant,
                       light=light, views=1, profile=profile,
                       overrides={**base.get("overrides", {}), **case.overrides},
@@ -133,6 +134,33 @@ def _inspect(prepared, summary, case: Case, moderate_exr: str | None) -> dict[st
     return out
 
 
+def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, int]:
+    """The values of a case's derived knobs (:attr:`Case.derived`) on ``scene``.
+
+    ``"signals"`` is the scene's vertex count; ``"dimension"`` the values per vertex of the
+    method's uncompressed artifact at the case's config without the derived knobs (the
+    moderate case's artifact: a cache hit once it ran), i.e. the d of its CPCA signals.
+    """
+    from ..method import load_or_precompute
+
+    out = {}
+    for knob, what in derived.items():
+        if what == "signals":
+            out[knob] = int(scene.n_vertices)
+        elif what == "dimension":
+            config = dataclasses.replace(prepared.config, compress="none", clusters=None,
+                                         pca_vectors=None)
+            arrays = load_or_precompute(prepared.method_cls, scene, config,
+                                        progress=False).arrays
+            n = int(scene.n_vertices)
+            per_vertex = [a for a in arrays.values()
+                          if np.issubdtype(a.dtype, np.floating) and a.ndim >= 1 and len(a) == n]
+            out[knob] = int(max(per_vertex, key=lambda a: a.size).size // n)
+        else:
+            raise ValueError(f"derived knob value '{what}'")  # a catalogue bug, not user input
+    return out
+
+
 def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
                  results_path: Path | None, out_dir: Path,
                  moderate_exr: str | None = None) -> dict[str, Any]:
@@ -155,6 +183,12 @@ def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, An
     start = time.perf_counter()
     out: dict[str, Any] = {"error_kind": "", "error": ""}
     try:
+        if case.derived:  # resolved on the case's scene, then run as fixed overrides
+            first = prepare(_request(method, dataclasses.replace(case, derived={}), profile=profile,
+                                     base=base, results_path=results_path, out_dir=out_dir))
+            derived = derive_overrides(first, case_scene(first.scene, case), case.derived)
+            out["derived_overrides"] = derived
+            case = dataclasses.replace(case, overrides={**case.overrides, **derived}, derived={})
         prepared = prepare(_request(method, case, profile=profile, base=base,
                                     results_path=results_path, out_dir=out_dir))
         scene = case_scene(prepared.scene, case)
@@ -199,7 +233,7 @@ def run_case(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
     A process that dies without an answer is ``error_kind="crash"`` (with its exit code); one
     still running after the timeout is killed and ``error_kind="timeout"``.
     """
-    timeout_s = TIMEOUTS[profile] if timeout_s is None else float(timeout_s)
+    timeout_s = (TIMEOUTS[profile] if timeout_s is None else float(timeout_s)) * case.timeout_factor
     ctx = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
     parent, child = ctx.Pipe(duplex=False)
     kwargs = {"profile": profile, "base": dict(base), "results_path": results_path,

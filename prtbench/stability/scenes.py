@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..scene import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
+from ..sdf.nodes import SdfNode
 
 #: Height of the grazing camera above the ground, as a fraction of the scene's diagonal.
 GRAZING_HEIGHT = 1e-3
@@ -49,6 +50,55 @@ def _transform_sdf(sdf, scale: float, offset: np.ndarray):
         root = root.translate(*(float(c) for c in offset))
     lo, hi = (np.asarray(b, dtype=np.float64) * scale + offset for b in sdf.bounds)
     return SdfSurface(root, (tuple(lo), tuple(hi)), sdf.materials, sdf.name)
+
+
+class DistanceScale(SdfNode):
+    """``child``'s distance multiplied by ``factor`` < 1: d(p) = f·child(p).
+
+    The zero set (the surface) and the sign are unchanged and the field stays 1-Lipschitz, so
+    sphere tracing stays safe, but |∇d| = f: every step is f times the exact one.
+    """
+
+    def __init__(self, child: SdfNode, factor: float):
+        if not 0.0 < float(factor) <= 1.0:
+            raise InvalidInputError(f"distance factor {factor!r}; accepted: 0 < factor <= 1")
+        self.child, self.factor = child, float(factor)
+
+    @property
+    def children(self):
+        return (self.child,)
+
+    def _eval(self, p, need_material):
+        d, m = self.child._eval(p, need_material)
+        return d * self.factor, m
+
+    def _emit(self, cg, p):
+        from ..sdf.nodes import glsl_float
+
+        d, m = self.child._emit(cg, p)
+        return cg.let("float", "d", f"{d} * {glsl_float(self.factor)}"), m
+
+    def _spec(self):
+        return {"factor": self.factor}
+
+
+def _solid_block(scene: Scene) -> SceneObject:
+    """A closed box standing on the ground under the scene's centre: half the ground's width
+    and depth, a third of the scene's height (outward faces, flat normals)."""
+    import trimesh
+
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in scene.bounds())
+    names = [o.name for o in scene.objects]
+    floor = (float(scene.objects[names.index("ground")].mesh.positions[:, 1].max())
+             if "ground" in names else float(lo[1]))
+    extent = np.array([0.5 * (hi[0] - lo[0]), (hi[1] - floor) / 3.0, 0.5 * (hi[2] - lo[2])])
+    centre = np.array([0.5 * (lo[0] + hi[0]), floor + 0.5 * extent[1], 0.5 * (lo[2] + hi[2])])
+    box = trimesh.creation.box(extents=extent)
+    box.apply_translation(centre)
+    box.unmerge_vertices()  # one vertex per face corner: flat normals at the box's edges
+    material = next((o.material for o in scene.objects if o.name == "ground"),
+                    scene.objects[0].material)
+    return SceneObject("solid-block", TriangleMesh(box.vertices, box.faces), material)
 
 
 def _ground_index(scene: Scene) -> int:
@@ -150,19 +200,29 @@ def case_scene(base: Scene, case) -> Scene:
     sdf = base.sdf
     if sdf is not None and (scale != 1.0 or case.translate):
         sdf = _transform_sdf(sdf, scale, offset)
+    if sdf is not None and case.distance_factor != 1.0:
+        sdf = dataclasses.replace(sdf, root=DistanceScale(sdf.root, case.distance_factor))
+    elif case.distance_factor != 1.0:
+        raise InvalidInputError(f"stability case '{case.name}' scales a distance field; scene "
+                                f"'{base.name}' has none (accepted: SDF scenes)")
     if sdf is not None and case.shininess is not None:
         sdf = dataclasses.replace(sdf, materials=tuple(_material(m, case.shininess)
                                                        for m in sdf.materials))
     trajectory = Trajectory(tuple(_transform_view(v, scale, offset)
                                   for v in base.trajectory.views))
-    if case.geometry:
-        g = _ground_index(base)
-        ground = objects[g]
-        if case.geometry == "flipped-normals":
+    if case.geometry in ("flipped-normals", "solid-block"):
+        names = [o.name for o in objects]
+        g = names.index("ground") if "ground" in names else -1  # a file may have no ground
+        if case.geometry == "solid-block":
+            objects.append(_solid_block(dataclasses.replace(base, objects=objects)))
+        else:
             objects = [o if i == g else SceneObject(
                 o.name, TriangleMesh(o.mesh.positions, o.mesh.faces, -o.mesh.normals, o.mesh.uvs),
                 o.material) for i, o in enumerate(objects)]
-        elif case.geometry == "degenerate":
+    elif case.geometry:
+        g = _ground_index(base)
+        ground = objects[g]
+        if case.geometry == "degenerate":
             objects[g] = SceneObject(ground.name, _degenerate(ground.mesh), ground.material)
         elif case.geometry == "coincident":
             objects.append(SceneObject("ground-copy", ground.mesh, ground.material))
@@ -173,7 +233,7 @@ def case_scene(base: Scene, case) -> Scene:
         elif case.geometry != "grazing":
             raise InvalidInputError(f"stability geometry '{case.geometry}'; accepted: grazing, "
                                     "edge-on, flipped-normals, degenerate, t-junction, "
-                                    "coincident")
+                                    "coincident, solid-block")
     exposure = base.exposure * (LIGHTS[case.light].exposure_factor if case.light else 1.0)
     params = {**base.params, "stability_case": case.name}
     scene = dataclasses.replace(base, objects=objects, sdf=sdf, trajectory=trajectory,

@@ -4,7 +4,9 @@ Every registered method except the two that train a network (``learnt``, ``learn
 minute of training per case here; they run in ``make table-stability``) is measured in the
 smoke profile on the cheap extremes its knobs have (SH bands at 1, half-float storage, a ridge
 of 0), an all-black and a 10⁶ constant light, the scene scaled by 10⁴ and by 10⁻⁴ (refused by
-the extent check) and a Phong exponent of 10⁴, plus the SH core's rows. Every case must be
+the extent check) and a Phong exponent of 10⁴, the method edges that are cheap here (one
+wavelet lighting term, CPCA with one cluster per vertex and with no PCA vectors, probes inside
+a solid block), plus the SH core's rows. Every case must be
 ``ok``, ``degraded`` or ``refused``; the moderate cases ``ok``; and the report must be written
 from the stored rows.
 """
@@ -19,7 +21,9 @@ from prtbench.stability.report import write_reports
 
 TRAINED = ("learnt", "learnt-sdf")
 SMOKE_CASES = ("sh_bands=1", "storage=float16", "precision=float16", "ridge=0", "light=black",
-               "light=huge-constant", "scale=1e+04", "scale=1e-04", "shininess=1e+04")
+               "light=huge-constant", "scale=1e+04", "scale=1e-04", "shininess=1e+04",
+               "light_terms=1", "compress=cpca clusters=signals", "compress=cpca pca_vectors=0",
+               "geometry=solid-block")
 
 
 @pytest.fixture(scope="module")
