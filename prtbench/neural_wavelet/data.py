@@ -73,8 +73,17 @@ def training_lights(names, rotations: int) -> list:
 
 def check_light_split(train, heldout) -> None:
     """Held-out lights must never be trained on; at least one of each."""
+    import os
+
+    from prtbench.errors import UnknownNameError
+    from prtbench.lights import LIGHTS
+
     if not train:
         raise InvalidInputError("train_lights is empty; accepted: one or more light names")
+    known = LIGHTS.names()
+    for name in (*train, *heldout):  # names only: loading HDRIs waits for the precompute
+        if name not in known and not os.path.isfile(name):
+            raise UnknownNameError("light", name, known)
     common = sorted(set(train) & set(heldout))
     if common:
         raise InvalidInputError(f"lights {', '.join(common)} are both train_lights and "

@@ -193,6 +193,13 @@ def train_model(scene, config, *, progress: bool = True):
             if bar is not None:
                 bar.close()
         train_s = time.perf_counter() - start
+        if not np.isfinite(losses).all():
+            from prtbench.errors import InvalidInputError
+
+            raise InvalidInputError(
+                f"neural-wavelet training diverged (loss {losses[-1]!r} after {len(losses)} "
+                f"steps at learning_rate={config.learning_rate:g}); accepted: a smaller "
+                "learning_rate (nothing was cached)")
         window = max(1, len(losses) // 20)
         pixels = int(config.steps) * int(config.batch_pixels)
         stats = {
