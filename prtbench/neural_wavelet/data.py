@@ -220,7 +220,7 @@ def build_dataset(scene, config, *, progress: bool = True) -> dict[str, np.ndarr
                 indirect, _, facts = indirect_image(
                     scene, lights[l], view, width=config.train_width,
                     height=config.train_height, spp=config.train_spp, bounces=config.bounces,
-                    seed=(int(config.seed) * 7919 + index) % (2**32 - 1))
+                    seed=(1_000_003 + int(config.seed) * 7919 + index) % (2**32 - 1))
                 seconds += facts["seconds"]
                 negative = min(negative, facts["negative"])
                 px = pixel_rows(gpass.read(view), view.eye)
