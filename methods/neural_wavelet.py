@@ -205,6 +205,42 @@ class NeuralWavelet(Method):
         return Artifact(cls.name, arrays, stats)
 
     @classmethod
+    def op_counts(cls, config: NeuralWaveletConfig, *, scene_vertices: int,
+                  scene_triangles: int, covered_pixels: int, width: int, height: int,
+                  memory_bytes: int):
+        """The G-buffer draw (4 RGBA32F targets read back), then per covered pixel: the field
+        (hash grid: 8 fetches of F features per level and the trilinear weights; vertex: 3
+        fetches of R, the barycentrics, softplus), the per-pixel half of the first layer and
+        SH(ωr); per pixel and selected wavelet: H ⊙ W (R), M (R·D), the wavelet half of the
+        first layer (D·hidden), the hidden layers, the RGB output and the dot product with L.
+        The light's Haar transform and selection are per frame (6N² log N)."""
+        from prtbench.tradeoff import cost
+
+        k, hidden = config.light_terms, config.hidden
+        if config.features == "hashgrid":
+            rank = config.levels * config.features_per_level
+            field = {"madds": float(config.levels * (8 * (config.features_per_level + 3) + 12)),
+                     "fetches": float(8 * config.levels), "bytes": 0.0}
+        else:
+            rank = config.vertex_features
+            field = {"madds": float(3 * rank + 30 + rank * cost.TRANSCENDENTAL_MADDS),
+                     "fetches": 3.0, "bytes": 0.0}
+        sh = (config.reflect_degree + 1) ** 2 if config.reflect_degree >= 0 else 0
+        per_pixel = cost.add_counts(field, {"madds": float((sh + 10) * hidden + 4 * sh + 12)})
+        per_term = {"madds": float(rank + rank * config.feature_dim
+                                   + config.feature_dim * hidden + hidden
+                                   + (config.layers - 1) * (hidden * hidden + hidden)
+                                   + 3 * hidden + 3 + 3), "fetches": 1.0, "bytes": 0.0}
+        n = 6 * config.cubemap ** 2
+        return cost.add_counts(
+            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                               pixels=covered_pixels, varyings=10, vertex_bytes=52),
+            {"bytes": float(4 * 16 * width * height)},  # the G-buffer read back
+            cost.scaled(cost.add_counts(per_pixel, cost.scaled(per_term, k)), covered_pixels),
+            {"madds": float(n * 2 * max(config.cubemap.bit_length(), 1) + n)},
+            {"bytes": float(memory_bytes)})
+
+    @classmethod
     def renderer(cls, scene, artifact: Artifact, config: NeuralWaveletConfig, *, width: int,
                  height: int) -> "NeuralWaveletRenderer":
         return NeuralWaveletRenderer(scene, artifact.arrays, config, width=width, height=height)
