@@ -134,7 +134,7 @@ def test_indirect_is_full_minus_direct_and_adds_back_to_an_independent_full_rend
     peak = float(direct.max())
     # Same seed: the direct samples cancel, so the difference is never negative beyond rounding.
     assert facts["negative"] >= -1e-5 * peak, (facts["negative"], peak)
-    assert indirect.mean() > 0.02 * direct.mean()  # glossy ground under a sphere: real bounce
+    assert indirect.mean() > 0.005 * direct.mean()  # sphere and ground light each other
     other = render_reference(scene, light, view, bounces=1, seed=12, **kw)
     mask = other.image.max(axis=-1) > 0
     rms = float(np.sqrt(np.mean((direct + indirect - other.image)[mask] ** 2)))
