@@ -19,7 +19,7 @@ from prtbench.method import METHODS
 from prtbench.stability.matrix import CORE, load_rows, run_matrix
 from prtbench.stability.report import write_reports
 
-TRAINED = ("learnt", "learnt-sdf")
+TRAINED = ("learnt", "learnt-sdf", "neural-wavelet")
 SMOKE_CASES = ("sh_bands=1", "storage=float16", "precision=float16", "ridge=0", "light=black",
                "light=huge-constant", "scale=1e+04", "scale=1e-04", "shininess=1e+04",
                "light_terms=1", "compress=cpca clusters=signals", "compress=cpca pca_vectors=0",
