@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import statistics
 import time
 from dataclasses import dataclass
 from typing import ClassVar
@@ -39,7 +38,8 @@ import numpy as np
 from prtbench.cache import cached_arrays, content_key
 from prtbench.config import knob
 from prtbench.errors import InvalidInputError
-from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_method
+from prtbench.method import (Artifact, FrameTimes, Method, Renderer, register_method,
+                             wall_frame_times)
 from prtbench.scene import Texture
 from prtbench.sdf.trace import SDF_TRANSFER_VERSION
 
@@ -517,16 +517,8 @@ class TorchSdfRenderer(Renderer):
         if int(warmup) < 1 or int(frames) < 1:
             raise InvalidInputError(f"warmup={warmup!r}, frames={frames!r}; accepted: "
                                     "integers >= 1 (the first frame is never timed)")
-        for _ in range(int(warmup)):
-            frame()
-        samples = []
-        for _ in range(int(frames)):
-            start = time.perf_counter()
-            frame()
-            samples.append((time.perf_counter() - start) * 1e3)
-        return FrameTimes(float(statistics.median(samples)), float(np.percentile(samples, 95)),
-                          float(statistics.fmean(samples)), int(frames), self.renderer_string,
-                          "wall+sync")
+        return wall_frame_times(frame, warmup=int(warmup), frames=frames,
+                                renderer=self.renderer_string, source="wall+sync")
 
     def memory_bytes(self) -> int:
         # Resident weights (float32) and the light matrix, as the GLSL path counts them.

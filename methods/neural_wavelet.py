@@ -27,15 +27,14 @@ module imports no torch, moderngl or mitsuba (``prtbench list`` stays instant).
 
 from __future__ import annotations
 
-import statistics
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from prtbench.config import knob, seed_knob
 from prtbench.errors import InvalidInputError
-from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_method
+from prtbench.method import (Artifact, FrameTimes, Method, Renderer, register_method,
+                             wall_frame_times)
 
 #: Seed of the direct-only render added by ``direct="mitsuba"`` (the runner's reference uses 0).
 DIRECT_SEED = 104_729
@@ -355,16 +354,8 @@ class NeuralWaveletRenderer(Renderer):
             if self.device != "cpu":
                 torch.cuda.synchronize()
 
-        for _ in range(int(warmup)):
-            frame()
-        samples = []
-        for _ in range(int(frames)):
-            start = time.perf_counter()
-            frame()
-            samples.append((time.perf_counter() - start) * 1e3)
-        return FrameTimes(float(statistics.median(samples)), float(np.percentile(samples, 95)),
-                          float(statistics.fmean(samples)), int(frames), self.renderer_string,
-                          "wall+sync")
+        return wall_frame_times(frame, warmup=int(warmup), frames=frames,
+                                renderer=self.renderer_string, source="wall+sync")
 
     def memory_bytes(self) -> int:
         """Field (hash tables, or vertex features + mesh) + W + M + MLP, float32."""

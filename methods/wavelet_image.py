@@ -33,16 +33,15 @@ not timed, as the SH methods' light projection is not.
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
-from statistics import fmean, median
 from types import SimpleNamespace
 
 import numpy as np
 
 from prtbench.config import knob
 from prtbench.errors import InvalidInputError
-from prtbench.method import Artifact, FrameTimes, Method, Renderer, register_method
+from prtbench.method import (Artifact, FrameTimes, Method, Renderer, register_method,
+                             wall_frame_times)
 from prtbench.wavelet.sparse import SparseTransport
 
 from ._gbuffer import pixel_gbuffer
@@ -310,15 +309,8 @@ class WaveletImageRenderer(Renderer):
             raise InvalidInputError(f"warmup={warmup!r}, frames={frames!r}; accepted: "
                                     "integers >= 1")
         self.relight.light_cube(light)  # per light, outside the frame
-        for _ in range(int(warmup)):
-            self._frame(light)
-        samples = []
-        for _ in range(int(frames)):
-            start = time.perf_counter()
-            self._frame(light)
-            samples.append((time.perf_counter() - start) * 1e3)
-        return FrameTimes(float(median(samples)), float(np.percentile(samples, 95)),
-                          float(fmean(samples)), int(frames), self.renderer_string, "cpu-wall")
+        return wall_frame_times(lambda: self._frame(light), warmup=int(warmup), frames=frames,
+                                renderer=self.renderer_string, source="cpu-wall")
 
     def memory_bytes(self) -> int:
         """Sparse transport + selection weights + per-pixel kd, ks and index + the image."""

@@ -9,14 +9,11 @@ methods do not time either).
 
 from __future__ import annotations
 
-import time
-from statistics import fmean, median
-
 import numpy as np
 
 from prtbench.config import check_memory
 from prtbench.errors import InvalidInputError
-from prtbench.method import FrameTimes
+from prtbench.method import FrameTimes, wall_frame_times
 from prtbench.wavelet.sparse import SparseTransport
 
 SELECTIONS = ("magnitude", "area", "transport")
@@ -126,14 +123,9 @@ def host_frame_times(ctx, draw, *, warmup: int, frames: int, renderer: str) -> F
     the frame, which a GPU timer query would not see."""
     if int(warmup) != warmup or warmup < 1 or int(frames) != frames or frames < 1:
         raise InvalidInputError(f"warmup={warmup!r}, frames={frames!r}; accepted: integers >= 1")
-    for _ in range(int(warmup)):
-        draw()
-    ctx.finish()
-    samples = []
-    for _ in range(int(frames)):
-        start = time.perf_counter()
+    def frame() -> None:
         draw()
         ctx.finish()
-        samples.append((time.perf_counter() - start) * 1e3)
-    return FrameTimes(float(median(samples)), float(np.percentile(samples, 95)),
-                      float(fmean(samples)), int(frames), renderer, "wall+finish")
+
+    return wall_frame_times(frame, warmup=warmup, frames=frames, renderer=renderer,
+                            source="wall+finish")

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -91,6 +92,26 @@ class FrameTimes:
     frames: int
     renderer: str
     source: str = "timer-query"
+
+
+def wall_frame_times(frame: Callable[[], object], *, warmup: int, frames: int, renderer: str,
+                     source: str) -> FrameTimes:
+    """Host clock around ``frames`` whole calls of ``frame`` after ``warmup`` untimed ones.
+
+    For renderers whose frame is not one GL draw (CPU relighting, torch networks): ``frame``
+    must end with whatever makes the work complete (glFinish, a CUDA synchronisation), and
+    ``source`` names that (``"wall+finish"``, ``"wall+sync"``, ``"cpu-wall"``). Callers check
+    their own ``warmup``/``frames`` bounds.
+    """
+    for _ in range(int(warmup)):
+        frame()
+    samples = []
+    for _ in range(int(frames)):
+        start = time.perf_counter()
+        frame()
+        samples.append((time.perf_counter() - start) * 1e3)
+    return FrameTimes(float(statistics.median(samples)), float(np.percentile(samples, 95)),
+                      float(statistics.fmean(samples)), int(frames), renderer, source)
 
 
 class Renderer(ABC):

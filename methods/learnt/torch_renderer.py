@@ -13,12 +13,10 @@ CUDA where torch sees it, CPU here.
 from __future__ import annotations
 
 import math
-import statistics
-import time
 
 import numpy as np
 
-from prtbench.method import FrameTimes
+from prtbench.method import FrameTimes, wall_frame_times
 
 from . import glsl
 from .model import LearntModel
@@ -195,16 +193,8 @@ class TorchRenderer(LearntGLBase):
             if self.device != "cpu":
                 torch.cuda.synchronize()
 
-        for _ in range(max(int(warmup), 1)):
-            frame()
-        samples = []
-        for _ in range(int(frames)):
-            start = time.perf_counter()
-            frame()
-            samples.append((time.perf_counter() - start) * 1e3)
-        return FrameTimes(float(statistics.median(samples)), float(np.percentile(samples, 95)),
-                          float(statistics.fmean(samples)), int(frames), self.renderer_string,
-                          "wall+sync")
+        return wall_frame_times(frame, warmup=max(int(warmup), 1), frames=frames,
+                                renderer=self.renderer_string, source="wall+sync")
 
     def memory_bytes(self) -> int:
         # Resident weights (float32) and the light matrix, as for the GLSL path.
