@@ -580,3 +580,58 @@ def test_file_scene_over_the_memory_triangle_limit_is_refused(tmp_path, monkeypa
     small = tmp_path / "small.stl"
     trimesh.creation.icosphere(subdivisions=2).export(str(small))
     assert read_scene_file(str(small))[0].n_triangles == 320
+
+
+def _as_obj_scene(scene) -> "trimesh.Scene":
+    """A built-in diffuse scene as a trimesh scene for OBJ+MTL: one ``o`` per object, its
+    normals stored, kd as the MTL's ``Kd`` (8-bit through trimesh's SimpleMaterial) and ``Ks``
+    0 (trimesh writes 0.4 by default, which the reader would take as a glossy lobe)."""
+    out = trimesh.Scene()
+    for o in scene.objects:
+        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
+                               process=False)
+        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
+        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.SimpleMaterial(
+            diffuse=[*kd, 255], specular=[0, 0, 0, 255], ambient=[0, 0, 0, 255],
+            name=o.name.replace("/", "_")))
+        out.add_geometry(mesh, node_name=o.name, geom_name=o.name)
+    return out
+
+
+@pytest.mark.assets
+def test_cgal_lion_exported_to_obj_measures_as_the_builtin_lion(tmp_path):
+    # Issue #14's must-hold: the CGAL lion head (a fetched asset, hence `assets`) written to
+    # OBJ+MTL by trimesh and run with texture-tpfl (its atlas made by xatlas: the export has no
+    # UVs) within 1 dB masked PSNR of the built-in `lion`, each against its own path reference,
+    # on the built-in's views and exposure. Measured at quick by hand (last stop): 27.66 vs
+    # 27.77 dB; at smoke (this test) 23.89 vs 23.84 dB.
+    import copy
+
+    from prtbench.regress import gate
+    from prtbench.runner import RunRequest, execute, prepare
+
+    builtin = get_scene("lion")
+    path = tmp_path / "lion.obj"
+    _as_obj_scene(builtin).export(str(path))
+    assert (tmp_path / "material.mtl").is_file()  # trimesh writes the MTL beside the OBJ
+    imported, _ = read_scene_file(str(path))
+    assert len(imported.objects) == len(builtin.objects)
+    assert all(np.allclose(o.material.ks, 0.0) for o in imported.objects)  # diffuse, as built
+    psnr = {}
+    for scene in ("lion", str(path)):
+        request = RunRequest(method="texture-tpfl", scene=scene, profile="smoke", views=1,
+                             light="sky", out_dir=None, write_images=False, store_results=False)
+        prepared = prepare(request)
+        if scene != "lion":
+            assert prepared.scene.name.startswith("lion-")  # really the imported file
+            moved = copy.copy(prepared.scene)
+            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
+            prepared.scene = moved.with_views(1)
+        summary = execute(prepared, progress=False, echo=False)
+        assert summary.status == "ok"
+        psnr[scene] = summary.mean_metrics()["psnr_masked"]
+        if scene == "lion":  # a measurement, not noise: it beats the trivial images
+            assert not gate(request, summary.mean_metrics())
+    print(f"texture-tpfl lion: masked PSNR built-in {psnr['lion']:.3f} dB, "
+          f"OBJ {psnr[str(path)]:.3f} dB")
+    assert abs(psnr["lion"] - psnr[str(path)]) < 1.0
