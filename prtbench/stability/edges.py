@@ -3,8 +3,8 @@
 * ``mesh=1e6-triangles``: the base scene's sphere tessellated to 10⁶ triangles, for the methods
   that store transfer per vertex (:data:`PER_VERTEX_METHODS`); precompute time and peak memory
   are what it records. The smoke profile uses 10⁵ triangles and says so in the case's name.
-* CPCA at its extremes (methods with the ``compress``/``clusters``/``pca_vectors`` knobs that
-  accept ``compress=cpca``): one cluster per vertex (K = N), no PCA vectors (n′ = 0: vector
+* CPCA at its extremes (per-vertex methods with the ``compress``/``clusters``/``pca_vectors``
+  knobs that accept ``compress=cpca``; texture-tp/tpfl's texel signals are not derived yet): one cluster per vertex (K = N), no PCA vectors (n′ = 0: vector
   quantisation) and as many as the transfer has values (n′ = d). N and d are derived from the
   case's scene and the method's uncompressed artifact when the case runs
   (:func:`prtbench.stability.run.derive_overrides`).
@@ -64,6 +64,10 @@ def large_mesh_cases(method_cls, *, profile: str) -> list[Case]:
 def compress_cases(method_cls, *, base: Mapping[str, Any]) -> list[Case]:
     """CPCA with K = N, n′ = 0 and n′ = d, for methods that accept ``compress=cpca``."""
     names = {f.name for f in dataclasses.fields(method_cls.Config)}
+    # N and d are derived per vertex (run.derive_overrides); the texture methods' signals are
+    # texels, whose count the atlas decides, so their extremes wait for a per-texel derivation.
+    if getattr(method_cls, "name", "") not in PER_VERTEX_METHODS:
+        return []
     if not set(COMPRESS_KNOBS) <= names or not _accepts(
             method_cls, base["scene"], base["variant"], base["scene_params"],
             overrides={"compress": "cpca"}):

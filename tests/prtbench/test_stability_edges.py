@@ -43,7 +43,9 @@ def test_cpca_extremes_for_the_methods_that_compress():
         assert cases["compress=cpca pca_vectors=0"].overrides == {"compress": "cpca",
                                                                  "pca_vectors": 0}
         assert cases["compress=cpca pca_vectors=d"].derived == {"pca_vectors": "dimension"}
+    # texture-tp compresses too, but its signals are texels: no per-vertex N and d for it.
     assert not any(name.startswith("compress=") for name in _cases("texture-tp"))
+    assert not any(name.startswith("compress=") for name in _cases("irradiance-volume"))
 
 
 def test_wavelet_k_is_one_and_every_coefficient_of_the_cubemap():
