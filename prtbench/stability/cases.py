@@ -225,8 +225,9 @@ def base_case(method_cls, *, scene_file: str | None = None,
               scene_params: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Scene, variant, scene params, light and config overrides of ``method_cls``'s moderate case.
 
-    ``sphere-over-plane`` (:data:`BASE_SCENE`) unless the method refuses it (e.g. it needs an
-    SDF scene), then the method's regression scene; with ``scene_file``, that file (with
+    ``sphere-over-plane`` (:data:`BASE_SCENE`) unless the method refuses it, then its glossy
+    variant (a method that needs a glossy material), then the method's regression scene (e.g.
+    it needs an SDF scene); with ``scene_file``, that file (with
     ``scene_params``), whether the method accepts it or not (a refusal is the answer). The
     regression case's config overrides always apply (they make the smoke profile's training
     or lighting meaningful). ``label`` names the base scene in rows and reports.
@@ -242,8 +243,12 @@ def base_case(method_cls, *, scene_file: str | None = None,
                 "label": scene.name, "file": True}
     base = {**BASE_SCENE, "overrides": overrides}
     if not _accepts(method_cls, base["scene"], "diffuse", base["scene_params"]):
-        base.update(scene=regression["scene"], variant="diffuse",
-                    scene_params=dict(regression.get("scene_params", {})))
+        if _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
+            # e.g. factored-brdf: more than one BRDF term needs a glossy material to factor.
+            base.update(variant="glossy")
+        else:
+            base.update(scene=regression["scene"], variant="diffuse",
+                        scene_params=dict(regression.get("scene_params", {})))
     base["label"] = base["scene"]
     return base
 
