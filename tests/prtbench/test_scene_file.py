@@ -443,9 +443,9 @@ def test_vertex_prt_on_a_gltf_file_beats_the_trivial_images(tmp_path):
     assert read_scene_file(str(path))[1].sha256 in rows[0][1]
 
 
-def _as_gltf_scene(scene, *, translation=None) -> "trimesh.Scene":
-    """A built-in scene as a trimesh scene: one node per object (moved by ``translation``),
-    its normals stored, kd as glTF's 8-bit baseColorFactor on a non-metallic rough material."""
+def _as_trimesh_scene(scene, material, *, translation=None) -> "trimesh.Scene":
+    """A built-in scene as a trimesh scene: one node per object (moved by ``translation``), its
+    normals stored, ``material(name, kd8)`` its trimesh material from kd in 8 bits."""
     out = trimesh.Scene()
     transform = (np.eye(4) if translation is None
                  else trimesh.transformations.translation_matrix(translation))
@@ -453,10 +453,16 @@ def _as_gltf_scene(scene, *, translation=None) -> "trimesh.Scene":
         mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
                                process=False)
         kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
-        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
-            baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=o.name))
+        mesh.visual = trimesh.visual.TextureVisuals(material=material(o.name, kd))
         out.add_geometry(mesh, node_name=o.name, geom_name=o.name, transform=transform)
     return out
+
+
+def _as_gltf_scene(scene, *, translation=None) -> "trimesh.Scene":
+    """For glTF: kd as the 8-bit baseColorFactor of a non-metallic rough material."""
+    return _as_trimesh_scene(scene, lambda name, kd: trimesh.visual.material.PBRMaterial(
+        baseColorFactor=[*kd, 255], metallicFactor=0.0, roughnessFactor=1.0, name=name),
+        translation=translation)
 
 
 def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tmp_path):
@@ -520,6 +526,36 @@ def test_file_scene_over_sloan_matrix_limit_is_refused_naming_the_limit(tmp_path
     assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
 
 
+def _builtin_and_imported_psnr(method: str, name: str, path: Path, *, builtin, light: str,
+                               scene_params: dict | None = None) -> tuple[float, float]:
+    """Masked PSNR of ``method`` (smoke, one view) on the built-in scene ``name`` and on its
+    export ``path``, the import seen from the built-in's views and exposure; each against its
+    own path reference. The built-in run must beat its trivial images (a measurement, not
+    noise)."""
+    import copy
+
+    from prtbench.regress import gate
+    from prtbench.runner import RunRequest, execute, prepare
+
+    psnr = []
+    for scene in (name, str(path)):
+        request = RunRequest(method=method, scene=scene, profile="smoke", views=1, light=light,
+                             out_dir=None, write_images=False, store_results=False,
+                             scene_params=(scene_params or {}) if scene == name else {})
+        prepared = prepare(request)
+        if scene != name:
+            assert prepared.scene.name.startswith(f"{name}-")  # really the imported file
+            moved = copy.copy(prepared.scene)
+            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
+            prepared.scene = moved.with_views(1)
+        summary = execute(prepared, progress=False, echo=False)
+        assert summary.status == "ok"
+        psnr.append(summary.mean_metrics()["psnr_masked"])
+        if scene == name:
+            assert not gate(request, summary.mean_metrics())
+    return psnr[0], psnr[1]
+
+
 @pytest.mark.parametrize("method", ["vertex", "texture-tpfl"])
 def test_plants_exported_to_glb_measures_as_the_builtin_plants(tmp_path, method):
     # plants (diffuse, procedural: no fetched asset, ~5 s) written to GLB by trimesh (positions
@@ -528,11 +564,6 @@ def test_plants_exported_to_glb_measures_as_the_builtin_plants(tmp_path, method)
     # reference (a separate cache entry: the file scene hashes differently), so the two masked
     # PSNRs may differ by the references' Monte-Carlo noise and the kd rounding (≤ 0.5/255).
     # 1 dB is the issue's acceptance bound for an imported scene; measured: 0.001 dB.
-    import copy
-
-    from prtbench.regress import gate
-    from prtbench.runner import RunRequest, execute, prepare
-
     # vertex's own regression case: a subdivided ground under the sun, where the shadows are
     # what is measured (under sky, at 1 view, vertex does not beat the unshadowed image here).
     params = {"ground_subdivisions": 32}
@@ -541,24 +572,10 @@ def test_plants_exported_to_glb_measures_as_the_builtin_plants(tmp_path, method)
     path = tmp_path / "plants.glb"
     out.export(str(path))
 
-    psnr = {}
-    for scene in ("plants", str(path)):
-        request = RunRequest(method=method, scene=scene, profile="smoke", views=1, light="sun",
-                             out_dir=None, write_images=False, store_results=False,
-                             scene_params=params if scene == "plants" else {})
-        prepared = prepare(request)
-        if scene != "plants":
-            assert prepared.scene.name.startswith("plants-")  # really the imported file
-            moved = copy.copy(prepared.scene)
-            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
-            prepared.scene = moved.with_views(1)
-        summary = execute(prepared, progress=False, echo=False)
-        assert summary.status == "ok"
-        psnr[scene] = summary.mean_metrics()["psnr_masked"]
-        if scene == "plants":  # a measurement, not noise: it beats the trivial images
-            assert not gate(request, summary.mean_metrics())
-    print(f"{method}: masked PSNR built-in {psnr['plants']:.3f} dB, imported {psnr[str(path)]:.3f} dB")
-    assert abs(psnr["plants"] - psnr[str(path)]) < 1.0
+    psnr = _builtin_and_imported_psnr(method, "plants", path, builtin=builtin, light="sun",
+                                      scene_params=params)
+    print(f"{method}: masked PSNR built-in {psnr[0]:.3f} dB, imported {psnr[1]:.3f} dB")
+    assert abs(psnr[0] - psnr[1]) < 1.0
 
 
 def test_file_scene_over_the_memory_triangle_limit_is_refused(tmp_path, monkeypatch, capsys):
@@ -583,19 +600,11 @@ def test_file_scene_over_the_memory_triangle_limit_is_refused(tmp_path, monkeypa
 
 
 def _as_obj_scene(scene) -> "trimesh.Scene":
-    """A built-in diffuse scene as a trimesh scene for OBJ+MTL: one ``o`` per object, its
-    normals stored, kd as the MTL's ``Kd`` (8-bit through trimesh's SimpleMaterial) and ``Ks``
-    0 (trimesh writes 0.4 by default, which the reader would take as a glossy lobe)."""
-    out = trimesh.Scene()
-    for o in scene.objects:
-        mesh = trimesh.Trimesh(o.mesh.positions, o.mesh.faces, vertex_normals=o.mesh.normals,
-                               process=False)
-        kd = np.round(np.array(o.material.kd) * 255).astype(np.uint8)
-        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.SimpleMaterial(
-            diffuse=[*kd, 255], specular=[0, 0, 0, 255], ambient=[0, 0, 0, 255],
-            name=o.name.replace("/", "_")))
-        out.add_geometry(mesh, node_name=o.name, geom_name=o.name)
-    return out
+    """For OBJ+MTL: kd as the MTL's ``Kd`` (trimesh's SimpleMaterial) and ``Ks`` 0 (trimesh
+    writes 0.4 by default, which the reader would take as a glossy lobe)."""
+    return _as_trimesh_scene(scene, lambda name, kd: trimesh.visual.material.SimpleMaterial(
+        diffuse=[*kd, 255], specular=[0, 0, 0, 255], ambient=[0, 0, 0, 255],
+        name=name.replace("/", "_")))
 
 
 @pytest.mark.assets
@@ -605,11 +614,6 @@ def test_cgal_lion_exported_to_obj_measures_as_the_builtin_lion(tmp_path):
     # UVs) within 1 dB masked PSNR of the built-in `lion`, each against its own path reference,
     # on the built-in's views and exposure. Measured at quick by hand (last stop): 27.66 vs
     # 27.77 dB; at smoke (this test) 23.89 vs 23.84 dB.
-    import copy
-
-    from prtbench.regress import gate
-    from prtbench.runner import RunRequest, execute, prepare
-
     builtin = get_scene("lion")
     path = tmp_path / "lion.obj"
     _as_obj_scene(builtin).export(str(path))
@@ -617,21 +621,6 @@ def test_cgal_lion_exported_to_obj_measures_as_the_builtin_lion(tmp_path):
     imported, _ = read_scene_file(str(path))
     assert len(imported.objects) == len(builtin.objects)
     assert all(np.allclose(o.material.ks, 0.0) for o in imported.objects)  # diffuse, as built
-    psnr = {}
-    for scene in ("lion", str(path)):
-        request = RunRequest(method="texture-tpfl", scene=scene, profile="smoke", views=1,
-                             light="sky", out_dir=None, write_images=False, store_results=False)
-        prepared = prepare(request)
-        if scene != "lion":
-            assert prepared.scene.name.startswith("lion-")  # really the imported file
-            moved = copy.copy(prepared.scene)
-            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
-            prepared.scene = moved.with_views(1)
-        summary = execute(prepared, progress=False, echo=False)
-        assert summary.status == "ok"
-        psnr[scene] = summary.mean_metrics()["psnr_masked"]
-        if scene == "lion":  # a measurement, not noise: it beats the trivial images
-            assert not gate(request, summary.mean_metrics())
-    print(f"texture-tpfl lion: masked PSNR built-in {psnr['lion']:.3f} dB, "
-          f"OBJ {psnr[str(path)]:.3f} dB")
-    assert abs(psnr["lion"] - psnr[str(path)]) < 1.0
+    psnr = _builtin_and_imported_psnr("texture-tpfl", "lion", path, builtin=builtin, light="sky")
+    print(f"texture-tpfl lion: masked PSNR built-in {psnr[0]:.3f} dB, OBJ {psnr[1]:.3f} dB")
+    assert abs(psnr[0] - psnr[1]) < 1.0
