@@ -153,8 +153,7 @@ class WaveletImage(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletImageConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.cache import cached_arrays, content_key
-        from prtbench.wavelet.transport import TRANSPORT_VERSION, compute_wavelet_transport
+        from prtbench.wavelet.transport import cached_transport
 
         cls.validate(scene, config)
         m, kept = _check_config(scene, config)
@@ -171,24 +170,14 @@ class WaveletImage(Method):
             lobe *= g["glossy"][sl, None]  # diffuse pixels: exact zeros, never stored
             return np.stack([np.ones_like(lobe), lobe], axis=1).astype(np.float32)
 
-        def compute() -> dict[str, np.ndarray]:
-            transport, stats = compute_wavelet_transport(
-                scene, g["positions"], g["normals"], n=config.cubemap, keep=config.keep,
-                texel_samples=config.texel_samples, storage=config.storage,
-                visibility=config.visibility, progress=progress,
-                lobes=specular if lobes == 2 else None, n_lobes=lobes)
-            return {**transport.arrays(), "rays": np.array(stats["rays"]),
-                    "trace_s": np.array(stats["trace_s"])}
-
         # Keyed by the precompute knobs only: render-time knobs (light_terms, selection,
         # lighting, sh_bands) reuse the transport, credited at its recorded compute time.
-        key = content_key("wavelet-image-transport", TRANSPORT_VERSION, IMAGE_TRANSPORT_VERSION,
-                          scene.content_hash(), _view_dict(view), config.width, config.height,
-                          config.cubemap, kept, config.texel_samples, config.storage,
-                          bool(config.visibility))
-        arrays = cached_arrays("wavelet-transport", key, compute)
-        rays, trace_s = int(arrays.pop("rays")), float(arrays.pop("trace_s"))
-        transport = SparseTransport.from_arrays(arrays)
+        transport, rays, trace_s = cached_transport(
+            "wavelet-image-transport", IMAGE_TRANSPORT_VERSION, scene.content_hash(),
+            _view_dict(view), config.width, config.height, config.cubemap, kept,
+            config.texel_samples, config.storage, bool(config.visibility), scene=scene,
+            points=g["positions"], normals=g["normals"], config=config, progress=progress,
+            lobes=specular if lobes == 2 else None, n_lobes=lobes)
         pixels = len(g["pixels"])
         return Artifact("wavelet-image", {**transport.arrays(), "pixels": g["pixels"],
                                           "kd": g["kd"], "ks": g["ks"]},

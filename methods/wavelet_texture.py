@@ -165,8 +165,7 @@ class WaveletTexture(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletTextureConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.cache import cached_arrays, content_key
-        from prtbench.wavelet.transport import TRANSPORT_VERSION, compute_wavelet_transport
+        from prtbench.wavelet.transport import cached_transport
 
         from .texture.atlas import AtlasMesh, render_gbuffer
         from .texture.shading import ShadingInputs
@@ -181,19 +180,10 @@ class WaveletTexture(Method):
         m, kept = check_wavelet_config("wavelet-texture", config, points=len(texels),
                                        what="texels")
 
-        def compute() -> dict[str, np.ndarray]:
-            transport, stats = compute_wavelet_transport(
-                scene, points, normals, n=config.cubemap, keep=config.keep,
-                texel_samples=config.texel_samples, storage=config.storage,
-                visibility=config.visibility, progress=progress)
-            return {**transport.arrays(), "rays": np.array(stats["rays"])}
-
-        key = content_key("wavelet-texture-transport", TRANSPORT_VERSION, scene.content_hash(),
-                          points, normals, config.cubemap, kept, config.texel_samples,
-                          config.storage, bool(config.visibility))
-        arrays = cached_arrays("wavelet-transport", key, compute)
-        rays = int(arrays.pop("rays"))
-        transport = SparseTransport.from_arrays(arrays)
+        transport, rays, _ = cached_transport(
+            "wavelet-texture-transport", scene.content_hash(), points, normals, config.cubemap,
+            kept, config.texel_samples, config.storage, bool(config.visibility), scene=scene,
+            points=points, normals=normals, config=config, progress=progress)
         meta = {"texture_resolution": atlas.resolution,
                 "filled_texels": int(len(texels) + sum(len(r[0]) for r in rings)),
                 "covered_texels": int(len(texels)), "coefficients": m,

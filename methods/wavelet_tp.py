@@ -153,30 +153,19 @@ class WaveletTP(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletTPConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.cache import cached_arrays, content_key
         from prtbench.wavelet import brdf
-        from prtbench.wavelet.transport import TRANSPORT_VERSION, compute_wavelet_transport
+        from prtbench.wavelet.transport import cached_transport
 
         cls.validate(scene, config)  # also when called directly, before any ray
         m, kept = _check_config(scene, config)
         positions, normals, _, _ = scene.merged()
         normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
-        def compute() -> dict[str, np.ndarray]:
-            transport, stats = compute_wavelet_transport(
-                scene, positions, normals, n=config.cubemap, keep=config.keep,
-                texel_samples=config.texel_samples, storage=config.storage,
-                visibility=config.visibility, progress=progress, cosine=False)
-            return {**transport.arrays(), "rays": np.array(stats["rays"]),
-                    "trace_s": np.array(stats["trace_s"])}
-
         # Keyed by the visibility knobs only: render-time knobs reuse it.
-        key = content_key("wavelet-tp-visibility", TRANSPORT_VERSION, scene.content_hash(),
-                          config.cubemap, kept, config.texel_samples, config.storage,
-                          bool(config.visibility))
-        arrays = cached_arrays("wavelet-transport", key, compute)
-        rays, trace_s = int(arrays.pop("rays")), float(arrays.pop("trace_s"))
-        transport = SparseTransport.from_arrays(arrays)
+        transport, rays, trace_s = cached_transport(
+            "wavelet-tp-visibility", scene.content_hash(), config.cubemap, kept,
+            config.texel_samples, config.storage, bool(config.visibility), scene=scene,
+            points=positions, normals=normals, config=config, progress=progress, cosine=False)
         d_points, d_coeffs, d_values = brdf.project(normals, n=config.cubemap,
                                                     keep=config.brdf_keep,
                                                     samples=config.brdf_samples)

@@ -92,29 +92,18 @@ class WaveletVertex(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletVertexConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.cache import cached_arrays, content_key
-        from prtbench.wavelet.transport import TRANSPORT_VERSION, compute_wavelet_transport
+        from prtbench.wavelet.transport import cached_transport
 
         cls.validate(scene, config)  # also when called directly, before any ray
         m, kept = _check_config(scene, config)
         positions, normals, _, _ = scene.merged()
 
-        def compute() -> dict[str, np.ndarray]:
-            transport, stats = compute_wavelet_transport(
-                scene, positions, normals, n=config.cubemap, keep=config.keep,
-                texel_samples=config.texel_samples, storage=config.storage,
-                visibility=config.visibility, progress=progress)
-            return {**transport.arrays(), "rays": np.array(stats["rays"]),
-                    "trace_s": np.array(stats["trace_s"])}
-
         # Keyed by the precompute knobs only: changing light_terms or selection (render-time
         # knobs) reuses the transport, credited at its recorded compute time.
-        key = content_key("wavelet-vertex-transport", TRANSPORT_VERSION, scene.content_hash(),
-                          config.cubemap, kept, config.texel_samples, config.storage,
-                          bool(config.visibility))
-        arrays = cached_arrays("wavelet-transport", key, compute)
-        rays, trace_s = int(arrays.pop("rays")), float(arrays.pop("trace_s"))
-        transport = SparseTransport.from_arrays(arrays)
+        transport, rays, trace_s = cached_transport(
+            "wavelet-vertex-transport", scene.content_hash(), config.cubemap, kept,
+            config.texel_samples, config.storage, bool(config.visibility), scene=scene,
+            points=positions, normals=normals, config=config, progress=progress)
         dense = len(positions) * m * 4  # the float32 matrix this replaces
         return Artifact("wavelet-vertex", transport.arrays(),
                         {"vertices": int(len(positions)), "coefficients": m,

@@ -204,3 +204,30 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
                                              n_coeffs=m,
                                              storage=storage)
     return transport, stats
+
+
+def cached_transport(name: str, *key_parts, scene: "Scene", points: np.ndarray,
+                     normals: np.ndarray, config, progress: bool = True,
+                     **transport_options) -> tuple[SparseTransport, int, float]:
+    """:func:`compute_wavelet_transport` with ``config``'s knobs (cubemap, keep, texel_samples,
+    storage, visibility), cached under ``content_key(name, TRANSPORT_VERSION, *key_parts)``.
+
+    Every wavelet method keys its transport by its precompute knobs only, so render-time knobs
+    reuse it. Returns the transport, its traced ray count and trace seconds (NaN for an entry
+    cached before trace time was stored).
+    """
+    from ..cache import cached_arrays, content_key
+
+    def compute() -> dict[str, np.ndarray]:
+        transport, stats = compute_wavelet_transport(
+            scene, points, normals, n=config.cubemap, keep=config.keep,
+            texel_samples=config.texel_samples, storage=config.storage,
+            visibility=config.visibility, progress=progress, **transport_options)
+        return {**transport.arrays(), "rays": np.array(stats["rays"]),
+                "trace_s": np.array(stats["trace_s"])}
+
+    arrays = dict(cached_arrays("wavelet-transport",
+                                content_key(name, TRANSPORT_VERSION, *key_parts), compute))
+    rays = int(arrays.pop("rays"))
+    trace_s = float(arrays.pop("trace_s")) if "trace_s" in arrays else float("nan")
+    return SparseTransport.from_arrays(arrays), rays, trace_s
