@@ -32,6 +32,45 @@ def row_dtype(n_points: int) -> np.dtype:
     return np.dtype(np.uint16) if n_points <= 1 << 16 else np.dtype(np.uint32)
 
 
+def as_float16(values: np.ndarray) -> np.ndarray:
+    """``values.astype(np.float16)``, bit for bit, several times faster for float32 values.
+
+    numpy's cast costs ~25 ns a value whose result is a float16 subnormal (a third of a
+    truncated transport's values are below 2⁻¹⁴), so float32 is rounded here in integer
+    arithmetic on its bits, to nearest with ties to even like the cast: normal results drop 13
+    mantissa bits and rebias the exponent; subnormal ones (|x| < 2⁻¹⁴) are the low bits of
+    |x| + 0.5, whose float32 rounding is onto float16's subnormal grid (steps of 2⁻²⁴).
+    Overflow, infinities and NaN (|x| >= 2¹⁶) go through numpy's cast. Other dtypes: the cast.
+
+    Parameters
+    ----------
+    values : ndarray
+
+    Returns
+    -------
+    ndarray, float16, the shape of ``values``
+    """
+    values = np.asarray(values)
+    if values.dtype != np.float32:
+        return values.astype(np.float16)
+    bits = np.ascontiguousarray(values).view(np.uint32)
+    magnitude = bits & np.uint32(0x7FFF_FFFF)
+    half = magnitude >> np.uint32(13)
+    half &= np.uint32(1)  # round half to even: + 0xFFF, + 1 if the kept bits are odd
+    half += magnitude
+    half += np.uint32(0xC800_0FFF)  # exponent bias 127 -> 15 (mod 2³²) and the rounding
+    half >>= np.uint32(13)
+    subnormal = (magnitude.view(np.float32) + np.float32(0.5)).view(np.uint32)
+    subnormal -= np.uint32(0x3F00_0000)  # the bits of 0.5
+    np.copyto(half, subnormal, where=magnitude < np.uint32(113 << 23))  # |x| < 2⁻¹⁴
+    out = half.astype(np.uint16)
+    out |= (bits >> np.uint32(16)).astype(np.uint16) & np.uint16(0x8000)
+    large = magnitude >= np.uint32(143 << 23)  # |x| >= 2¹⁶: inf, NaN, or rounds to inf
+    if large.any():
+        out[large] = values[large].astype(np.float16).view(np.uint16)
+    return out.view(np.float16)
+
+
 @dataclass
 class SparseTransport:
     """Transport matrix (points × coefficients) in compressed sparse columns.
@@ -103,7 +142,7 @@ class SparseTransport:
             scale = (np.where(peak > 0, peak, 1.0) / 127.0).astype(np.float32)
             stored = np.clip(np.rint(values / scale[points]), -127, 127).astype(np.int8)
         else:
-            stored = values.astype(storage)
+            stored = as_float16(values) if storage == "float16" else values.astype(storage)
         return cls(indptr, points.astype(row_dtype(n_points)), stored, scale, int(n_points))
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
