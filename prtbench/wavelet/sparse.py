@@ -125,25 +125,33 @@ class SparseTransport:
                                     "coefficient indices")
         if values.dtype.kind != "f":
             values = values.astype(np.float64)
-        # By coefficient, then point: a stable sort of the coefficient (radix sort for 16-bit
-        # keys) after ordering by point, which the transport's chunks already deliver.
+        # By coefficient, then point. Entries are first ordered by point (the transport's
+        # chunks already deliver that order); then scipy's CSR -> CSC conversion, a counting
+        # sort in C that keeps the point order within each coefficient, permutes their
+        # positions (~2× faster than a stable argsort and the gathers after it).
+        from scipy.sparse import csr_matrix
+
         if len(points) > 1 and np.any(points[1:] < points[:-1]):
             by_point = np.argsort(points, kind="stable")
             points, coeffs, values = points[by_point], coeffs[by_point], values[by_point]
-        key = coeffs.astype(np.uint16) if n_coeffs <= 1 << 16 else coeffs
-        order = np.argsort(key, kind="stable")
-        points, coeffs, values = points[order], coeffs[order], values[order]
-        indptr = np.zeros(n_coeffs + 1, dtype=np.int64)
-        np.cumsum(np.bincount(coeffs, minlength=n_coeffs), out=indptr[1:])
+        per_point = np.bincount(points, minlength=n_points)
+        point_ptr = np.zeros(n_points + 1, dtype=np.int64)
+        np.cumsum(per_point, out=point_ptr[1:])
+        positions = np.arange(len(points), dtype=np.int32 if len(points) < 1 << 31 else np.int64)
+        by_coeff = csr_matrix((positions, coeffs, point_ptr), shape=(n_points, n_coeffs)).tocsc()
+        order = by_coeff.data
         scale = None
         if storage == "int8":
             peak = np.zeros(n_points)
-            np.maximum.at(peak, points, np.abs(values))
+            filled = np.flatnonzero(per_point)
+            if len(filled):  # the largest |value| of each point, from its run of entries
+                peak[filled] = np.maximum.reduceat(np.abs(values), point_ptr[filled])
             scale = (np.where(peak > 0, peak, 1.0) / 127.0).astype(np.float32)
             stored = np.clip(np.rint(values / scale[points]), -127, 127).astype(np.int8)
         else:
             stored = as_float16(values) if storage == "float16" else values.astype(storage)
-        return cls(indptr, points.astype(row_dtype(n_points)), stored, scale, int(n_points))
+        return cls(by_coeff.indptr.astype(np.int64), by_coeff.indices.astype(row_dtype(n_points)),
+                   stored[order], scale, int(n_points))
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The stored arrays by name (for an :class:`~prtbench.method.Artifact`)."""
