@@ -60,7 +60,8 @@ def as_float16(values: np.ndarray) -> np.ndarray:
     half += magnitude
     half += np.uint32(0xC800_0FFF)  # exponent bias 127 -> 15 (mod 2³²) and the rounding
     half >>= np.uint32(13)
-    subnormal = (magnitude.view(np.float32) + np.float32(0.5)).view(np.uint32)
+    with np.errstate(invalid="ignore"):  # signalling NaNs: their result is numpy's, below
+        subnormal = (magnitude.view(np.float32) + np.float32(0.5)).view(np.uint32)
     subnormal -= np.uint32(0x3F00_0000)  # the bits of 0.5
     np.copyto(half, subnormal, where=magnitude < np.uint32(113 << 23))  # |x| < 2⁻¹⁴
     out = half.astype(np.uint16)
