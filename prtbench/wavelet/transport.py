@@ -33,7 +33,7 @@ from ..parallel import map_chunks, parallel_chunks
 from ..raytrace import Tracer, offset_origins
 from . import haar
 from .cubemap import check_resolution, subsample_pattern
-from .sparse import SparseTransport
+from .sparse import STORAGE_DTYPES, SparseTransport, as_float16
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -186,6 +186,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
     n = check_resolution(n)
     m = 6 * n * n
     k = keep_count(keep, m)
+    if storage not in STORAGE_DTYPES:  # before any tracing, not after it
+        raise InvalidInputError(f"storage '{storage}'; accepted: {', '.join(STORAGE_DTYPES)}")
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     if p.shape != nrm.shape:
@@ -244,6 +246,8 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         # float32 Haar: the values are stored at float32 or less (S > 1 sums stay float64).
         c = haar.forward(t.reshape(len(cos), 6, n, n), dtype=t.dtype).reshape(len(cos), m)
         rows, cols, vals = _entries(c, truncate(c, k), first_row=sl.start * n_lobes)
+        if storage == "float16":  # rounded here, on the threads (the same values, elementwise)
+            vals = as_float16(vals)
         return rows, cols, vals, traced, seconds
 
     parts, stats = [], {"rays": 0, "candidate_rays": int(len(p) * per_point), "trace_s": 0.0}
