@@ -89,10 +89,13 @@ def _vectors(records: np.ndarray) -> np.ndarray:
 def truncate(c: np.ndarray, k: int) -> np.ndarray:
     """Entries kept of each row: its nonzero coefficients among its ``k`` largest in magnitude.
 
-    A row with at most ``k`` nonzero coefficients keeps all of them, whatever order a partition
-    would put its zeros in; only the other rows are partitioned (``argpartition`` of −|c| at
-    ``k − 1``, row by row, so which of several equal magnitudes at the cut a row keeps does
-    not depend on the other rows).
+    Exactly the entries that ``argpartition`` of −|c| at ``k − 1``, row by row, puts first,
+    less the zeros. A row with at most ``k`` nonzero coefficients keeps all of them, whatever
+    order a partition would put its zeros in. In the other rows, the values at most the k-th
+    smallest −|c| (one ``partition``, cheaper than ``argpartition``) are the kept set whenever
+    there are exactly k of them; only rows with equal magnitudes straddling the cut are
+    partitioned by index, each on its own (which of the equal ones ``argpartition`` keeps
+    depends only on the row).
 
     Parameters
     ----------
@@ -110,9 +113,14 @@ def truncate(c: np.ndarray, k: int) -> np.ndarray:
     if len(full):
         magnitude = np.abs(c[full])
         np.negative(magnitude, out=magnitude)
-        top = np.argpartition(magnitude, k - 1, axis=1)[:, :k]
-        chosen = np.zeros(magnitude.shape, dtype=bool)
-        np.put_along_axis(chosen, top, True, axis=1)
+        cut = np.partition(magnitude, k - 1, axis=1)[:, k - 1:k]  # −(k-th largest |c|) < 0
+        chosen = magnitude <= cut
+        tied = np.flatnonzero(np.count_nonzero(chosen, axis=1) != k)
+        if len(tied):
+            top = np.argpartition(magnitude[tied], k - 1, axis=1)[:, :k]
+            redo = np.zeros((len(tied), c.shape[1]), dtype=bool)
+            np.put_along_axis(redo, top, True, axis=1)
+            chosen[tied] = redo
         keep[full] &= chosen
     return keep
 
