@@ -242,6 +242,45 @@ class ShRotation:
         return out
 
 
+def _project(visible: np.ndarray, local_sh: np.ndarray, pattern: RayPattern, sl: slice,
+             scratch: Scratch, *, scale: float) -> np.ndarray:
+    """``scale`` · Σ_j Y_i(ω_j) V_j per point in its local frame.
+
+    One (rows × M) @ (M × n²) product per pattern, over the points using it. When the chunk
+    starts at pattern 0 and holds whole rounds of patterns (every chunk but a ragged last
+    one), the products are one stacked matmul call: numpy hands BLAS the same per-pattern
+    products, so the bits are those of the loop, with 3 numpy calls instead of 4 per pattern
+    (fewer calls also means fewer GIL hand-overs between the tracing threads).
+
+    Parameters
+    ----------
+    visible : ndarray, shape (n, M), bool
+        Visibility of the rays of the points in ``sl``.
+    local_sh : ndarray, shape (P, M, n²)
+        SH of each pattern's local directions.
+
+    Returns
+    -------
+    ndarray, shape (n, n²), float64 (a new array)
+    """
+    n, m = visible.shape
+    p, n2 = len(local_sh), local_sh.shape[-1]
+    if n % p == 0 and sl.start % p == 0:
+        rows = n // p
+        weights = scratch.get("weights", (p, rows, m), np.float64)
+        np.copyto(weights, visible.reshape(rows, p, m).transpose(1, 0, 2))  # [k] = rows k::p
+        products = np.matmul(weights, local_sh, out=scratch.get("products", (p, rows, n2),
+                                                                np.float64))
+        return np.multiply(products.transpose(1, 0, 2), scale).reshape(n, n2)
+    local = np.empty((n, n2))
+    for k, rows in pattern.groups(sl):
+        v = visible[rows]
+        weights = scratch.get("weights", v.shape, np.float64)
+        np.copyto(weights, v)
+        local[rows] = weights @ local_sh[k]
+    return local * scale
+
+
 def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *, bands: int,
                      rays_per_point: int, seed: int, chunks: list[slice], with_stderr: bool,
                      bar, visibility: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
@@ -256,15 +295,15 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     tables: list = []
     tables_lock = threading.Lock()
 
-    def sh_tables() -> tuple[ShRotation, list[np.ndarray]]:
-        """(rotation, SH of each local pattern), built by the first chunk done tracing: the
-        other threads' tracing hides the cost."""
+    def sh_tables() -> tuple[ShRotation, np.ndarray]:
+        """(rotation, (P, M, n²) SH of each local pattern), built by the first chunk done
+        tracing: the other threads' tracing hides the cost."""
         with tables_lock:
             if not tables:
                 # One evaluation for all patterns (eval_sh is per direction: same values).
                 local = pattern.local
                 y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
-                tables.extend([ShRotation(bands), list(y)])
+                tables.extend([ShRotation(bands), y])
         return tables[0], tables[1]
 
     scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
@@ -298,14 +337,8 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
                 error[s:s + len(v)] = np.sqrt(var / m)
             return mean, error
         rotate, local_sh = sh_tables()
-        local = np.empty((len(visible), n2))
-        for k, rows in pattern.groups(sl):
-            v = visible[rows]
-            weights = scratch.get("weights", v.shape, np.float64)
-            np.copyto(weights, v)
-            local[rows] = weights @ local_sh[k]
-        # frames hold rows (t1, t2, n): the local -> world rotation is their transpose.
-        return rotate(local * (np.pi / m), frames.transpose(0, 2, 1)), None
+        return rotate(_project(visible, local_sh, pattern, sl, scratch, scale=np.pi / m),
+                      frames.transpose(0, 2, 1)), None
 
     # Chunks run on the precompute threads (embree and numpy's large operations release the
     # GIL); each chunk's rays depend only on its points, so any thread count gives these bits.

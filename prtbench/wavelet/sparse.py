@@ -32,6 +32,46 @@ def row_dtype(n_points: int) -> np.dtype:
     return np.dtype(np.uint16) if n_points <= 1 << 16 else np.dtype(np.uint32)
 
 
+def as_float16(values: np.ndarray) -> np.ndarray:
+    """``values.astype(np.float16)``, bit for bit, several times faster for float32 values.
+
+    numpy's cast costs ~25 ns a value whose result is a float16 subnormal (a third of a
+    truncated transport's values are below 2⁻¹⁴), so float32 is rounded here in integer
+    arithmetic on its bits, to nearest with ties to even like the cast: normal results drop 13
+    mantissa bits and rebias the exponent; subnormal ones (|x| < 2⁻¹⁴) are the low bits of
+    |x| + 0.5, whose float32 rounding is onto float16's subnormal grid (steps of 2⁻²⁴).
+    Overflow, infinities and NaN (|x| >= 2¹⁶) go through numpy's cast. Other dtypes: the cast.
+
+    Parameters
+    ----------
+    values : ndarray
+
+    Returns
+    -------
+    ndarray, float16, the shape of ``values``
+    """
+    values = np.asarray(values)
+    if values.dtype != np.float32:
+        return values.astype(np.float16)
+    bits = np.ascontiguousarray(values).view(np.uint32)
+    magnitude = bits & np.uint32(0x7FFF_FFFF)
+    half = magnitude >> np.uint32(13)
+    half &= np.uint32(1)  # round half to even: + 0xFFF, + 1 if the kept bits are odd
+    half += magnitude
+    half += np.uint32(0xC800_0FFF)  # exponent bias 127 -> 15 (mod 2³²) and the rounding
+    half >>= np.uint32(13)
+    with np.errstate(invalid="ignore"):  # signalling NaNs: their result is numpy's, below
+        subnormal = (magnitude.view(np.float32) + np.float32(0.5)).view(np.uint32)
+    subnormal -= np.uint32(0x3F00_0000)  # the bits of 0.5
+    np.copyto(half, subnormal, where=magnitude < np.uint32(113 << 23))  # |x| < 2⁻¹⁴
+    out = half.astype(np.uint16)
+    out |= (bits >> np.uint32(16)).astype(np.uint16) & np.uint16(0x8000)
+    large = magnitude >= np.uint32(143 << 23)  # |x| >= 2¹⁶: inf, NaN, or rounds to inf
+    if large.any():
+        out[large] = values[large].astype(np.float16).view(np.uint16)
+    return out.view(np.float16)
+
+
 @dataclass
 class SparseTransport:
     """Transport matrix (points × coefficients) in compressed sparse columns.
@@ -86,25 +126,33 @@ class SparseTransport:
                                     "coefficient indices")
         if values.dtype.kind != "f":
             values = values.astype(np.float64)
-        # By coefficient, then point: a stable sort of the coefficient (radix sort for 16-bit
-        # keys) after ordering by point, which the transport's chunks already deliver.
+        # By coefficient, then point. Entries are first ordered by point (the transport's
+        # chunks already deliver that order); then scipy's CSR -> CSC conversion, a counting
+        # sort in C that keeps the point order within each coefficient, permutes their
+        # positions (~2× faster than a stable argsort and the gathers after it).
+        from scipy.sparse import csr_matrix
+
         if len(points) > 1 and np.any(points[1:] < points[:-1]):
             by_point = np.argsort(points, kind="stable")
             points, coeffs, values = points[by_point], coeffs[by_point], values[by_point]
-        key = coeffs.astype(np.uint16) if n_coeffs <= 1 << 16 else coeffs
-        order = np.argsort(key, kind="stable")
-        points, coeffs, values = points[order], coeffs[order], values[order]
-        indptr = np.zeros(n_coeffs + 1, dtype=np.int64)
-        np.cumsum(np.bincount(coeffs, minlength=n_coeffs), out=indptr[1:])
+        per_point = np.bincount(points, minlength=n_points)
+        point_ptr = np.zeros(n_points + 1, dtype=np.int64)
+        np.cumsum(per_point, out=point_ptr[1:])
+        positions = np.arange(len(points), dtype=np.int32 if len(points) < 1 << 31 else np.int64)
+        by_coeff = csr_matrix((positions, coeffs, point_ptr), shape=(n_points, n_coeffs)).tocsc()
+        order = by_coeff.data
         scale = None
         if storage == "int8":
             peak = np.zeros(n_points)
-            np.maximum.at(peak, points, np.abs(values))
+            filled = np.flatnonzero(per_point)
+            if len(filled):  # the largest |value| of each point, from its run of entries
+                peak[filled] = np.maximum.reduceat(np.abs(values), point_ptr[filled])
             scale = (np.where(peak > 0, peak, 1.0) / 127.0).astype(np.float32)
             stored = np.clip(np.rint(values / scale[points]), -127, 127).astype(np.int8)
         else:
-            stored = values.astype(storage)
-        return cls(indptr, points.astype(row_dtype(n_points)), stored, scale, int(n_points))
+            stored = as_float16(values) if storage == "float16" else values.astype(storage)
+        return cls(by_coeff.indptr.astype(np.int64), by_coeff.indices.astype(row_dtype(n_points)),
+                   stored[order], scale, int(n_points))
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The stored arrays by name (for an :class:`~prtbench.method.Artifact`)."""

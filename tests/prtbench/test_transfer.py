@@ -136,6 +136,34 @@ def test_results_do_not_depend_on_chunking_and_follow_the_seed():
     assert a.dtype == np.float32 and a.shape == (len(positions), 9)
 
 
+def test_stacked_projection_gives_the_bits_of_the_per_pattern_loop():
+    # Chunks of whole rounds of the 16 patterns take one stacked matmul; 40-point chunks
+    # (not a multiple of 16) take the per-pattern loop: the two paths must agree bit for bit.
+    from prtbench import transfer as tr
+
+    scene = get_scene("sphere-over-plane", sphere_segments=16, plane_subdivisions=4)
+    positions, normals, _, _ = scene.merged()
+    assert len(positions) >= 139
+    tracer = Tracer.from_scene(scene)
+    calls = []
+    stacked = np.matmul
+
+    def counting(*args, **kwargs):
+        calls.append(np.shape(args[0]))
+        return stacked(*args, **kwargs)
+
+    kw = dict(bands=6, rays_per_point=48, use_cache=False, progress=False, tracer=tracer)
+    loop = compute_transfer(scene, positions[:128], normals[:128], chunk_points=40, **kw)
+    try:
+        tr.np.matmul = counting
+        fast = compute_transfer(scene, positions[:128], normals[:128], chunk_points=32, **kw)
+    finally:
+        tr.np.matmul = stacked
+    assert calls.count((16, 2, 48)) == 4  # every chunk of 32 points took the stacked path
+    np.testing.assert_array_equal(fast, loop)
+    assert np.abs(fast).max() > 0.1
+
+
 def test_blas_thread_count_is_restored_after_the_loop():
     from prtbench.transfer import _openblas_threads
 

@@ -9,9 +9,9 @@ import pytest
 
 from prtbench.errors import InvalidInputError
 from prtbench.scene import get_scene
-from prtbench.wavelet import cubemap, haar
+from prtbench.wavelet import cubemap, haar, sparse
 from prtbench.wavelet.sparse import SparseTransport
-from prtbench.wavelet.transport import compute_wavelet_transport, keep_count
+from prtbench.wavelet.transport import compute_wavelet_transport, keep_count, truncate
 
 
 def _texel_transport(transport: SparseTransport, n: int) -> np.ndarray:
@@ -108,3 +108,87 @@ def test_keep_fraction_or_count():
     for bad in (0, -1, 6145, 2.5):
         with pytest.raises(InvalidInputError, match="keep="):
             keep_count(bad, 6144)
+
+
+def _old_truncation(c: np.ndarray, k: int) -> np.ndarray:
+    """The kept-entry mask of the original formula: partition every row, drop zeros."""
+    keep = np.zeros(c.shape, dtype=bool)
+    if k < c.shape[1]:
+        idx = np.argpartition(-np.abs(c), k - 1, axis=1)[:, :k]
+        np.put_along_axis(keep, idx, True, axis=1)
+    else:
+        keep[:] = True
+    return keep & (c != 0)
+
+
+def test_truncate_keeps_what_partitioning_every_row_kept_even_with_ties():
+    rng = np.random.default_rng(3)
+    m, k = 96, 20
+    c = rng.normal(size=(60, m)).astype(np.float32)
+    c[rng.random(c.shape) < 0.5] = 0                      # about 48 nonzeros: partitioned
+    c[:10, 15:] = 0                                      # <= k nonzeros: all of them kept
+    c[10:20] = np.round(c[10:20], 1)                     # many equal magnitudes at the cut
+    c[20:25] = np.where(c[20:25] != 0, np.float32(0.5), 0)  # all nonzeros equal
+    c[25:30] = -np.abs(c[25:30])
+    for kk in (1, k, 47, m):
+        kept = truncate(c, kk)
+        np.testing.assert_array_equal(kept, _old_truncation(c, kk))
+        assert np.all(kept.sum(axis=1) == np.minimum(kk, (c != 0).sum(axis=1)))
+
+
+def test_truncated_transport_is_the_partition_of_the_full_one():
+    # Axis-aligned normals on a plane make symmetric transports full of equal magnitudes.
+    scene = get_scene("sphere-over-plane", plane_subdivisions=3)
+    positions, normals, _, _ = scene.merged()
+    n, k = 8, 70
+    full, _ = compute_wavelet_transport(scene, positions, normals, n=n, keep=1.0,
+                                        progress=False)
+    c = full.dense().astype(np.float32)  # float32 storage holds the coefficients exactly
+    kept, _ = compute_wavelet_transport(scene, positions, normals, n=n, keep=k, progress=False)
+    expect = np.where(_old_truncation(c, k), c, 0)
+    assert (expect != 0).sum() > 0.3 * k * len(c)
+    np.testing.assert_array_equal(kept.dense(), expect)
+
+
+def test_float16_storage_rounds_exactly_like_numpy():
+    rng = np.random.default_rng(5)
+    bits = rng.integers(0, 2**32, 200_000, dtype=np.uint64).astype(np.uint32)
+    k = np.arange(1030, dtype=np.float64)
+    edges = np.concatenate([(k + 0.5) * 2.0**-24, k * 2.0**-24, (k + 0.5) * 2.0**-14,
+                            [2.0**-14, 2.0**-25, 3 * 2.0**-26, 65504, 65519.9, 65520, 1e-45,
+                             np.inf, np.nan]])
+    small = (rng.random(200_000) * 2.0**-12).astype(np.float32)
+    for x in (bits.view(np.float32), edges.astype(np.float32), -edges.astype(np.float32),
+              small, -small, small.reshape(400, 500)):
+        with np.errstate(over="ignore"):
+            expect = x.astype(np.float16)
+            got = sparse.as_float16(x)
+        assert got.dtype == np.float16 and got.shape == x.shape
+        assert got.tobytes() == expect.tobytes()
+    assert sparse.as_float16(np.array([2.0**-20])).tobytes() == np.float16(2.0**-20).tobytes()
+
+
+@pytest.mark.parametrize("storage", ["float32", "float16", "int8"])
+def test_sparse_build_matches_a_sort_by_coefficient_then_point(storage):
+    rng = np.random.default_rng(7)
+    p, m = 300, 64
+    dense = (rng.normal(size=(p, m)) * 1e-3 * (rng.random((p, m)) < 0.2)).astype(np.float32)
+    dense[17] = 0  # a point with no entries
+    rows, cols = np.nonzero(dense)
+    for order in (np.arange(len(rows)), rng.permutation(len(rows))):
+        built = SparseTransport.from_entries(rows[order], cols[order], dense[rows, cols][order],
+                                             n_points=p, n_coeffs=m, storage=storage)
+        by_coeff = np.lexsort((rows, cols))
+        values = dense[rows, cols][by_coeff]
+        np.testing.assert_array_equal(built.rows, rows[by_coeff].astype(np.uint16))
+        np.testing.assert_array_equal(built.indptr,
+                                      np.concatenate([[0], np.cumsum(np.bincount(cols,
+                                                                                 minlength=m))]))
+        if storage == "int8":
+            peak = np.abs(dense).max(axis=1).astype(np.float64)
+            scale = (np.where(peak > 0, peak, 1.0) / 127.0).astype(np.float32)
+            np.testing.assert_array_equal(built.scale, scale)
+            q = np.clip(np.rint(values / scale[rows[by_coeff]]), -127, 127).astype(np.int8)
+            np.testing.assert_array_equal(built.values, q)
+        else:
+            assert built.values.tobytes() == values.astype(storage).tobytes()
