@@ -72,8 +72,11 @@ def _cluster_spectrum(x: np.ndarray, rows: np.ndarray, keep: int) -> tuple[np.nd
 def _complete_basis(basis: np.ndarray, valid: int) -> np.ndarray:
     """``basis`` whose first ``valid`` rows are orthonormal, completed to orthonormal rows."""
     keep, d = basis.shape
-    q, _ = np.linalg.qr(np.concatenate([basis[:valid].T, np.eye(d)], axis=1))
-    # q's first `valid` columns span the valid rows (up to sign); take the rest as completion.
+    # Householder QR of [valid rows, e_1, e_2, ...]: q's first `valid` columns span the valid
+    # rows (up to sign), the next ones complete them. Column j of q depends only on the first
+    # j columns, so only the first `keep` are factored: O(d·keep²), not O(d³) per cluster
+    # (a cluster of one signal with d = 6·32² wavelet coefficients took seconds).
+    q, _ = np.linalg.qr(np.concatenate([basis[:valid].T, np.eye(d, keep - valid)], axis=1))
     out = basis.copy()
     out[valid:] = q[:, valid:keep].T
     return out
