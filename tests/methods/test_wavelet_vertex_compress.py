@@ -114,6 +114,33 @@ def test_basis_completion_is_orthonormal_and_the_full_factorisation():
     assert np.allclose(got[valid:], full[:, valid:keep].T, atol=1e-12)
 
 
+def test_gram_spectrum_fits_the_svd_subspace_of_wide_clusters():
+    from prtbench.compress.fit import fit_cpca
+
+    rng = np.random.default_rng(2)
+    # 6 clusters of ~40 wide signals (d = 300), each near a 5-dimensional affine subspace.
+    labels = rng.integers(0, 6, 240)
+    centres, spans = rng.normal(size=(6, 300)), rng.normal(size=(6, 5, 300))
+    x = centres[labels] + np.einsum("nj,njd->nd", rng.normal(size=(240, 5)), spans[labels])
+    x += 1e-3 * rng.normal(size=x.shape)
+    fits = {s: fit_cpca(x, clusters=6, pca_vectors=4, spectrum=s, init_labels=labels)
+            for s in ("svd", "gram")}
+    svd, gram = fits["svd"], fits["gram"]
+    assert np.array_equal(svd.cluster, gram.cluster)
+    assert np.allclose(gram.history, svd.history, rtol=1e-9, atol=0)
+    for k in range(6):  # the same subspace (projectors), orthonormal rows
+        assert np.allclose(gram.bases[k] @ gram.bases[k].T, np.eye(4), atol=1e-12)
+        assert np.allclose(gram.bases[k].T @ gram.bases[k], svd.bases[k].T @ svd.bases[k],
+                           atol=1e-9)
+    assert np.allclose(gram.reconstruct(), svd.reconstruct(), atol=1e-9)
+    # Centred rank 2 below n′ = 4 (8 members on a plane): the 2 valid directions, completed
+    # orthonormally; the form is exact.
+    flat = centres[0] + rng.normal(size=(8, 2)) @ spans[0, :2]
+    small = fit_cpca(flat, clusters=1, pca_vectors=4, spectrum="gram")
+    assert np.allclose(small.bases[0] @ small.bases[0].T, np.eye(4), atol=1e-12)
+    assert small.history[-1] < 1e-12 * np.sum(flat**2)
+
+
 @pytest.mark.parametrize("selection", ["area", "magnitude", "transport"])
 @pytest.mark.parametrize("form", [{"compress": "cpca", "clusters": 8, "pca_vectors": 3},
                                   {"compress": "vq", "clusters": 16},
