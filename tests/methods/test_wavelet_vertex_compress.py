@@ -236,16 +236,19 @@ def test_bad_requests_are_one_line_errors_that_cache_nothing(sets, match, tmp_pa
 def test_a_fit_over_the_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
     cache = tmp_path / "cache"
     monkeypatch.setenv("PRTBENCH_CACHE", str(cache))
-    # Enough for the transport build (its own check), not for the dense fit.
-    monkeypatch.setattr("prtbench.config.memory_budget", lambda: 600 << 20)
+    # Enough for the transport build (its own check: 1990 vertices × 384 kept × 52 B + 512
+    # MiB), not for the fit of 64 clusters × 256 vectors of 1536 coefficients.
+    budget = 600 << 20
+    monkeypatch.setattr("prtbench.config.memory_budget", lambda: budget)
     status = main(["run", "--method", METHOD, "--scene", "sphere-over-plane", "--profile",
                    "smoke", "--set", "compress=cpca", "--set", "clusters=64", "--set",
-                   "pca_vectors=64", "--out", str(tmp_path / "out"),
+                   "pca_vectors=256", "--out", str(tmp_path / "out"),
                    "--results", str(tmp_path / "r.sqlite")])
     err = capsys.readouterr().err.strip()
     assert status == 2 and "\n" not in err, err
     v = get_scene("sphere-over-plane").n_vertices
-    need = fit_bytes(vertices=v, dimension=1536, clusters=64, pca_vectors=64)
+    need = fit_bytes(vertices=v, dimension=1536, clusters=64, pca_vectors=256)
+    assert need > budget > v * 384 * 52 + (512 << 20)
     assert f"{need} bytes with the fit's copies" in err and f"on {v} vertices × 1536" in err, err
     assert "accepted: fewer clusters or pca_vectors" in err
     assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*"))
