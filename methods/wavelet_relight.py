@@ -63,9 +63,14 @@ class Relighter:
 
     Parameters
     ----------
-    transport : SparseTransport
+    transport : SparseTransport or None
+        None where the product is formed elsewhere (a compressed transport, whose renderer
+        uses only :meth:`select`).
     config
         ``cubemap``, ``light_terms`` and ``selection``.
+    transport_weight : ndarray, shape (6N²,), optional
+        The ``transport`` selection's weights, where they are not ``transport``'s own column
+        means (e.g. those of a compressed transport's reconstruction).
 
     Attributes
     ----------
@@ -76,7 +81,8 @@ class Relighter:
         The coefficients selected in the last frame.
     """
 
-    def __init__(self, transport: SparseTransport, config):
+    def __init__(self, transport: SparseTransport | None, config, *,
+                 transport_weight: np.ndarray | None = None):
         from prtbench.wavelet import haar
 
         self.transport = transport
@@ -84,7 +90,8 @@ class Relighter:
         if self.selection == "area":
             self.weights = haar.support_solid_angles(self.n).reshape(-1).astype(np.float32)
         elif self.selection == "transport":
-            self.weights = transport.column_mean_abs()
+            self.weights = (transport.column_mean_abs() if transport_weight is None
+                            else np.asarray(transport_weight, np.float32).reshape(-1))
         else:
             self.weights = None
         self._cubes: dict[str, np.ndarray] = {}
@@ -100,8 +107,9 @@ class Relighter:
                 np.moveaxis(light_cubemap(light, self.n), -1, 0))}
         return self._cubes[key]
 
-    def __call__(self, light) -> np.ndarray:
-        """(P, 3) float32 Σ_{i in k} T_pi L_i for ``light``: the frame's CPU work."""
+    def select(self, light) -> tuple[np.ndarray, np.ndarray]:
+        """The light's Haar coefficients (6N², 3) float64 and this frame's k terms (k,) int64:
+        the per-frame work before the product."""
         from prtbench.wavelet import haar
         from prtbench.wavelet.selection import select_terms
 
@@ -110,12 +118,18 @@ class Relighter:
                 "transport": {"transport_weight": self.weights}}.get(self.selection, {})
         terms = select_terms(coeffs, self.k, rule=self.selection, **rule)
         self.last_terms = terms
+        return coeffs, terms
+
+    def __call__(self, light) -> np.ndarray:
+        """(P, 3) float32 Σ_{i in k} T_pi L_i for ``light``: the frame's CPU work."""
+        coeffs, terms = self.select(light)
         return self.transport.relight(coeffs, terms).astype(np.float32)
 
     @property
     def nbytes(self) -> int:
-        """Resident bytes: the sparse transport and the selection weights."""
-        return int(self.transport.nbytes + (0 if self.weights is None else self.weights.nbytes))
+        """Resident bytes: the sparse transport (if held) and the selection weights."""
+        held = 0 if self.transport is None else self.transport.nbytes
+        return int(held + (0 if self.weights is None else self.weights.nbytes))
 
 
 def host_frame_times(ctx, draw, *, warmup: int, frames: int, renderer: str) -> FrameTimes:

@@ -10,6 +10,12 @@ PSNR against the direct-only Mitsuba path reference, frame time and precompute t
 The ``smoke`` profile (tests) runs a reduced grid on ``plants`` only (K ∈ {1, 16, 64} ×
 n′ ∈ {0, 1, 4}, sloan-matrix at the smoke profile's 4 bands).
 
+Optional case (quick profile only, not in the registered table's cells: ask for it with
+``CpcaTable(optional=("plants wavelet",))``): ``wavelet-vertex`` on the same plants under the
+sun, its Haar rows of 6·N² = 6144 coefficients compressed (:data:`OPTIONAL_FORMS`, a reduced
+grid: every fit of 17k × 6144 values takes minutes on 2 cores). Its uncompressed row is the
+sparse transport the forms are fitted to (ratio: dense float32 bytes / stored sparse bytes).
+
 Transfer RMSE, form bytes, fit time and iterations are facts of the cached artifact, not of the
 runner's rows: once the sweep is stored, :meth:`CpcaTable.measure_rows` loads each run's
 artifact (a cache hit: the same entry the runner used) and stores them as measurement table
@@ -38,6 +44,12 @@ SMOKE_CASES = (
     ("plants diffuse", "vertex", "plants", "diffuse", {"ground_subdivisions": 32}, {}),
     ("plants glossy", "sloan-matrix", "plants", "glossy", {"ground_subdivisions": 32}, {}),
 )
+#: Cases added only when asked for (:class:`CpcaTable` ``optional``), quick profile only.
+OPTIONAL_CASES = (
+    ("plants wavelet", "wavelet-vertex", "plants", "diffuse", {"ground_subdivisions": 32}, {}),
+)
+#: (K, n′) of the optional cases: PCA and CPCA at n′ = 4, VQ at 64 and 256 clusters.
+OPTIONAL_FORMS = ((1, 4), (16, 4), (64, 4), (64, 0), (256, 0))
 LIGHT = "sun"
 #: Masked PSNR differences (dB) below this, near the uncompressed row's, are not a ranking.
 PSNR_RESOLVED_DB = 0.25
@@ -93,6 +105,17 @@ def form_facts(rows) -> dict:
                 "form_bytes": int(meta["compressed_bytes"]),
                 "transfer_bytes": int(meta["uncompressed_bytes"]),
                 "fit_s": float(meta["fit_s"]), "iterations": int(meta["iterations"])}
+    if "dense_float32_bytes" in meta:  # a sparse wavelet transport: against its dense rows
+        from prtbench.wavelet.sparse import SparseTransport
+
+        t = SparseTransport.from_arrays(artifact.arrays)
+        values = t.values.astype(np.float64) * (1.0 if t.scale is None
+                                                else t.scale[t.rows].astype(np.float64))
+        return {"transfer_rmse": 0.0,
+                "transfer_rms": float(np.sqrt(np.sum(values**2) / (t.n_points * t.n_coeffs))),
+                "form_bytes": int(meta["stored_bytes"]),
+                "transfer_bytes": int(meta["dense_float32_bytes"]),
+                "fit_s": float("nan"), "iterations": -1}
     transfer = next(iter(artifact.arrays.values()))
     return {"transfer_rmse": 0.0,
             "transfer_rms": float(np.sqrt(np.mean(np.square(transfer, dtype=np.float64)))),
@@ -133,6 +156,15 @@ class CpcaTable(Reproduction):
     )
     measurement_tables = (FORM_TABLE,)
 
+    def __init__(self, *, optional: Sequence[str] = ()):
+        known = [case[0] for case in OPTIONAL_CASES]
+        unknown = [name for name in optional if name not in known]
+        if unknown:
+            from prtbench.errors import UnknownNameError
+
+            raise UnknownNameError("optional table-cpca case", unknown[0], known)
+        self.optional = tuple(optional)
+
     def cells(self, profile: str) -> list[Cell]:
         smoke = profile == "smoke"
         cases = SMOKE_CASES if smoke else CASES
@@ -147,6 +179,14 @@ class CpcaTable(Reproduction):
                 cells += [Cell(method=method, scene=scene, variant=variant, light=LIGHT,
                                scene_params=params, overrides={**base, **form_overrides(k, n)},
                                label={"case": label, "K": k, "n": n}) for n in vectors]
+        for label, method, scene, variant, params, base in OPTIONAL_CASES:
+            if label not in self.optional or profile != "quick":
+                continue
+            cells += [Cell(method=method, scene=scene, variant=variant, light=LIGHT,
+                           scene_params=params,
+                           overrides={**base, **(form_overrides(k, n) if k else {})},
+                           label={"case": label, "K": k, "n": n})
+                      for k, n in ((0, -1),) + OPTIONAL_FORMS]
         return cells
 
     def measure_rows(self, frame, *, profile: str) -> dict[str, list[dict]]:

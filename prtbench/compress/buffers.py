@@ -49,7 +49,14 @@ class CpcaBuffers:
 
         ``light`` maps signal rows (M, d) to (M, outputs · 3), output-major then RGB.
         """
-        table = self.model.project(light)  # (K, 1+n, outputs·3)
+        self.bind_table(self.model.project(light))
+
+    def bind_table(self, table: np.ndarray) -> None:
+        """Upload a projection table computed by the caller and bind the buffers.
+
+        ``table`` is (K, 1 + n′, outputs · 3), e.g. :meth:`Cpca.project_terms` of a sparse
+        light.
+        """
         self.projected.write(np.ascontiguousarray(table, np.float32).tobytes())
         self.projected.bind_to_storage_buffer(BINDING_PROJECTED)
         if self.cluster is not None:

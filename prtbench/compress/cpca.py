@@ -135,6 +135,33 @@ class Cpca:
         out = flat @ light if isinstance(light, np.ndarray) else np.asarray(light(flat))
         return out.reshape(self.n_clusters, 1 + self.pca_vectors, -1)
 
+    def project_terms(self, terms: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """:meth:`project` for a light operator with only ``terms`` rows non-zero.
+
+        A sparse light (e.g. Ng 2003's k selected wavelet coefficients) meets only k of the d
+        columns of every mean and basis vector: P_k = [m_k; B_k][:, terms] · values costs
+        K·(1 + n′)·k multiply-adds and gathers no other column (no (K, 1 + n′, d) copy).
+
+        Parameters
+        ----------
+        terms : ndarray, shape (k,), int
+            Signal dimensions the light is non-zero on.
+        values : ndarray, shape (k, out)
+            The operator's rows at ``terms``.
+
+        Returns
+        -------
+        ndarray, shape (K, 1 + n, out), float64
+            As :meth:`project`.
+        """
+        terms = np.asarray(terms, dtype=np.int64)
+        values = np.asarray(values, dtype=np.float64)
+        out = np.empty((self.n_clusters, 1 + self.pca_vectors, values.shape[1]))
+        out[:, 0] = self.means[:, terms] @ values
+        if self.pca_vectors:
+            out[:, 1:] = self.bases[:, :, terms] @ values
+        return out
+
     def apply(self, projected: np.ndarray) -> np.ndarray:
         """Per-signal output y_i = P_c0 + Σ_j w_ij P_cj, shape (N, out).
 

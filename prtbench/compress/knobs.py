@@ -99,13 +99,14 @@ def cache_identity(values: Mapping[str, Any]) -> dict[str, Any]:
 
 def compress_signals(signals: np.ndarray, form: Form, *, seed: int, what: str = "vertices",
                      max_bytes: int | None = None, progress: bool = False,
-                     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+                     spectrum: str = "svd") -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Fit ``form`` to ``signals`` (N, d); (artifact arrays, meta).
 
     Arrays: ``cpca_means`` (K, d), ``cpca_bases`` (K, n′, d), ``cpca_weights`` (N, n′) float32,
     ``cpca_cluster`` (N,) int32 — only those the form stores (:meth:`Cpca.stored_arrays`).
     Meta: the form, the fit's error history, the transfer RMSE over all N·d values of the
-    float32 form, the compressed and uncompressed bytes, the fit's wall time.
+    float32 form, the compressed and uncompressed bytes, the fit's wall time. ``spectrum``:
+    :func:`prtbench.compress.fit.fit_cpca`'s.
     """
     from .fit import fit_cpca
 
@@ -113,7 +114,7 @@ def compress_signals(signals: np.ndarray, form: Form, *, seed: int, what: str = 
     x = np.asarray(signals).reshape(len(signals), -1)
     model = fit_cpca(x, clusters=form.clusters, pca_vectors=form.pca_vectors, seed=seed,
                      max_iterations=MAX_ITERATIONS, tolerance=TOLERANCE, max_bytes=max_bytes,
-                     what=what, progress=progress).astype(np.float32)
+                     what=what, progress=progress, spectrum=spectrum).astype(np.float32)
     fit_s = time.perf_counter() - start
     stored = model.stored_arrays()
     arrays = {PREFIX + name: value for name, value in stored.items()}

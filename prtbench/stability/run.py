@@ -139,7 +139,9 @@ def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, i
 
     ``"signals"`` is the scene's vertex count; ``"dimension"`` the values per vertex of the
     method's uncompressed artifact at the case's config without the derived knobs (the
-    moderate case's artifact: a cache hit once it ran), i.e. the d of its CPCA signals.
+    moderate case's artifact: a cache hit once it ran), i.e. the d of its CPCA signals, or
+    what the method's ``compress_dimension(config)`` declares where its artifact is not a
+    dense per-vertex array (wavelet-vertex's sparse Haar rows).
     """
     from ..method import load_or_precompute
 
@@ -150,6 +152,10 @@ def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, i
         elif what == "dimension":
             config = dataclasses.replace(prepared.config, compress="none", clusters=None,
                                          pca_vectors=None)
+            declared = getattr(prepared.method_cls, "compress_dimension", None)
+            if declared is not None:  # signals that are not an artifact array (sparse rows)
+                out[knob] = int(declared(config))
+                continue
             arrays = load_or_precompute(prepared.method_cls, scene, config,
                                         progress=False).arrays
             n = int(scene.n_vertices)

@@ -96,3 +96,24 @@ def test_small_table_from_the_results_store(tmp_path):
         assert math.isclose(float(r["ratio"]) * int(r["form bytes"]),
                             int(by[("—", "—")]["form bytes"]), rel_tol=1e-9)
     assert "Sloan 2003's finding" in md.read_text() and "than global PCA at" in md.read_text()
+
+
+def test_the_optional_wavelet_case_is_added_only_when_asked_and_only_at_quick():
+    from prtbench.errors import UnknownNameError
+
+    assert not any(c.method == "wavelet-vertex" for c in tc.TABLE.cells("quick"))
+    table = tc.CpcaTable(optional=("plants wavelet",))
+    cells = table.cells("quick")
+    assert cells[:len(tc.TABLE.cells("quick"))] == tc.TABLE.cells("quick")  # rows unchanged
+    wavelet = [c for c in cells if c.method == "wavelet-vertex"]
+    assert [(c.label["K"], c.label["n"]) for c in wavelet] == [(0, -1), *tc.OPTIONAL_FORMS]
+    assert "compress" not in wavelet[0].overrides
+    assert {c.overrides["compress"] for c in wavelet[1:]} == {"pca", "cpca", "vq"}
+    import methods.wavelet_vertex  # noqa: F401
+    from prtbench.method import METHODS
+
+    for c in wavelet:  # every row is a valid config
+        METHODS.get("wavelet-vertex").make_config(dict(c.overrides))
+    assert table.cells("smoke") == tc.TABLE.cells("smoke")
+    with pytest.raises(UnknownNameError, match="unknown optional table-cpca case 'bust wavelet'"):
+        tc.CpcaTable(optional=("bust wavelet",))
