@@ -120,6 +120,20 @@ def test_cases_come_from_the_config_fields_and_their_declared_bounds():
                           "storage=float16 light=huge-constant"]
 
 
+def test_a_knob_that_needs_another_knob_gets_it_in_its_cases():
+    # wavelet-image reads sh_bands only with lighting='sh': its band cases must set it, or
+    # they would render the moderate (wavelet-lit) picture again and be called ok.
+    from prtbench.method import METHODS
+
+    image = {c.name: c for c in knob_cases(METHODS.get("wavelet-image"), profile="quick")}
+    bands = [c for c in image.values() if "sh_bands" in c.overrides]
+    assert [c.name for c in bands] == ["lighting=sh sh_bands=1", "lighting=sh sh_bands=2",
+                                       "lighting=sh sh_bands=64"]
+    assert all(c.overrides["lighting"] == "sh" and "lighting=sh" in c.note for c in bands)
+    vertex = {c.name: c for c in knob_cases(METHODS.get("vertex"), profile="quick")}
+    assert vertex["sh_bands=1"].overrides == {"sh_bands": 1}
+
+
 def test_every_registered_method_gets_the_shared_cases():
     from prtbench.method import METHODS
 
@@ -134,6 +148,17 @@ def test_every_registered_method_gets_the_shared_cases():
     diffuse = [c.name for c in cases_mod.method_cases(METHODS.get("vertex"), profile="quick")]
     assert "shininess=1e+05" in glossy and not any(n.startswith("shininess") for n in diffuse)
     assert "storage=float16" in glossy and "storage=float16" not in diffuse
+
+
+def test_every_case_of_every_method_says_what_to_do_instead():
+    # The report prints a case's advice for each degraded row: a case without one would leave
+    # the user with "None".
+    from prtbench.method import METHODS
+
+    for name in METHODS.names():
+        cases = cases_mod.method_cases(METHODS.get(name), profile="quick")
+        assert len({c.name for c in cases}) == len(cases), name
+        assert [c.name for c in cases if c.name != "moderate" and not c.advice.strip()] == [], name
 
 
 # --- lights ------------------------------------------------------------------------------------
