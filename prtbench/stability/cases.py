@@ -58,6 +58,10 @@ class KnobRule:
     #: Extreme lights each value is also measured under (a knob whose arithmetic scales with
     #: the light: half-float storage, gamma-space transfer).
     lights: tuple[str, ...] = ()
+    #: Knobs a value of this knob needs to take effect, where the method has them and they
+    #: accept the value (wavelet-image reads ``sh_bands`` only with ``lighting="sh"``): without
+    #: them the case would render the moderate picture again and call it ``ok``.
+    requires: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _both(*values: Any) -> dict[str, tuple[Any, ...]]:
@@ -72,7 +76,8 @@ ALL_VALUES = {"light_terms": lambda config: 6 * int(config.cubemap) ** 2}
 KNOB_RULES: dict[str, KnobRule] = {
     "sh_bands": KnobRule({"smoke": ("low", "high"), "quick": ("low", 2, "high")},
                          "SH band count at the ends of the method's range",
-                         "use 3-5 bands (the moderate setting): 1-2 bands lose the shadow"),
+                         "use 3-5 bands (the moderate setting): 1-2 bands lose the shadow",
+                         requires={"lighting": "sh"}),
     "storage": KnobRule(_both("float16", "int8"),
                         "half-float (or 8-bit scaled) stored transfer (overflow/underflow)",
                         "store float32 where coefficients exceed 65504 or matter below 6e-5",
@@ -287,11 +292,16 @@ def _accepts(method_cls, scene: str, variant: str, scene_params: Mapping[str, An
 def knob_cases(method_cls, *, profile: str) -> list[Case]:
     """One case per extreme of every knob of ``method_cls.Config`` that has a rule."""
     moderate = method_cls.make_config(profile=profile)
+    fields = {f.name: f for f in dataclasses.fields(method_cls.Config)}
     cases = []
-    for f in dataclasses.fields(method_cls.Config):
+    for f in fields.values():
         rule = KNOB_RULES.get(f.name)
         if rule is None:
             continue
+        needs = {k: v for k, v in rule.requires.items() if k in fields
+                 and getattr(moderate, k) != v
+                 and v in (fields[k].metadata.get("choices") or (v,))}
+        prefix = "".join(f"{k}={_format_value(v)} " for k, v in needs.items())
         seen = {getattr(moderate, f.name)}
         for token in rule.values[profile]:
             if token == "all":
@@ -304,11 +314,13 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
             if choices is not None and value not in choices:
                 continue
             seen.add(value)
-            name = f"{f.name}={'all' if token == 'all' else _format_value(value)}"
-            cases.append(Case(name, rule.group, overrides={f.name: value}, note=rule.note,
+            name = prefix + f"{f.name}={'all' if token == 'all' else _format_value(value)}"
+            overrides = {**needs, f.name: value}
+            note = rule.note + (f" (with {prefix.strip()}, which the knob needs)" if needs else "")
+            cases.append(Case(name, rule.group, overrides=overrides, note=note,
                               advice=rule.advice, compare_image=True))
-            cases += [Case(f"{name} light={light}", rule.group, overrides={f.name: value},
-                           light=light, note=f"{rule.note}, under the {light} light",
+            cases += [Case(f"{name} light={light}", rule.group, overrides=overrides,
+                           light=light, note=f"{note}, under the {light} light",
                            advice=rule.advice) for light in rule.lights]
     return cases
 

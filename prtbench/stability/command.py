@@ -39,9 +39,12 @@ def run_command(args: argparse.Namespace) -> int:
     if args.from_store:
         from .matrix import stored_rows
 
+        every = [*METHODS.names()] if scene_file else [*METHODS.names(), CORE]
         return _write(stored_rows(profile=args.profile, results_path=results,
                                   partial=args.partial, table=table_name(label)), args, None,
-                      stem=stem)
+                      stem=stem, expected=expected_cases(every, profile=args.profile,
+                                                         scene_file=scene_file,
+                                                         scene_params=scene_params))
     if args.out:
         outputs.check_folder("--out", Path(args.out))
     outputs.check_results_store("--results", results or default_path())
@@ -55,7 +58,24 @@ def run_command(args: argparse.Namespace) -> int:
                         timeout_s=args.timeout, echo=not args.quiet, scene_file=scene_file,
                         scene_params=scene_params)
     return _write(load_rows(run_id, results_path=results, table=table_name(label)), args,
-                  run_id, stem=stem)
+                  run_id, stem=stem, expected=expected_cases(methods, profile=args.profile,
+                                                             scene_file=scene_file,
+                                                             scene_params=scene_params))
+
+
+def expected_cases(methods, *, profile: str, scene_file=None, scene_params=None
+                   ) -> dict[str, list[str]]:
+    """Method -> its catalogue's case names at ``profile`` (the report's "Not measured" list);
+    :data:`prtbench.stability.matrix.CORE` -> the SH core's row names."""
+    from ..method import METHODS
+    from .cases import method_cases
+    from .core import core_case_names
+    from .matrix import CORE
+
+    return {m: (core_case_names(profile=profile) if m == CORE else
+                [c.name for c in method_cases(METHODS.get(m), profile=profile,
+                                              scene_file=scene_file, scene_params=scene_params)])
+            for m in methods}
 
 
 def _scene(args: argparse.Namespace):
@@ -78,12 +98,14 @@ def _scene(args: argparse.Namespace):
 
 
 def _write(rows, args: argparse.Namespace, run_id: str | None, *,
-           stem: str = "table-stability") -> int:
-    """Reports (and JSON) of ``rows``; 1 when any row failed."""
+           stem: str = "table-stability", expected=None) -> int:
+    """Reports (and JSON) of ``rows``; 1 when any row failed. ``expected``: method -> case
+    names the report lists as not measured when they have no row."""
     from .. import strict_json
     from .report import method_summary, write_reports
 
-    for path in write_reports(rows, Path(args.reports), stem=stem):
+    for path in write_reports(rows, Path(args.reports), stem=stem, expected=expected,
+                              notes=args.note or ()):
         print(f"wrote {path}")
     if args.json:
         from ..cache import atomic_path
@@ -126,4 +148,6 @@ def add_parser(sub) -> None:
                    help="rewrite the report from the newest stored row of each case (no measuring)")
     p.add_argument("--partial", action="store_true",
                    help="with --from-store: runs interrupted before their end count too (marked)")
+    p.add_argument("--note", action="append", metavar="TEXT",
+                   help="a line the report prints under 'Not measured' (why cases are missing)")
     p.set_defaults(func=run_command)

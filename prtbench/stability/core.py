@@ -99,6 +99,13 @@ def classify_core(row: dict[str, Any]) -> tuple[str, str]:
     return "failed", "nothing measured"
 
 
+def core_case_names(*, profile: str) -> list[str]:
+    """The case names :func:`core_rows` measures at ``profile`` (nothing computed)."""
+    return [f"ringing {name} bands={bands} window={kind}" for name in LIGHTS[profile]
+            for bands in BANDS[profile] for kind in WINDOWS] + [
+        f"phong s={s:g} bands=16" for s in EXPONENTS]
+
+
 def core_rows(*, profile: str) -> list[dict[str, Any]]:
     """Every SH-core row of ``profile``, classified (``outcome``, ``reason``, ``advice``)."""
     from .lights import LIGHTS as CASE_LIGHTS

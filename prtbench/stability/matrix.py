@@ -9,6 +9,8 @@ runner runs it used: the report (:mod:`prtbench.stability.report`) prints only s
 
 from __future__ import annotations
 
+import math
+import os
 import sys
 import tempfile
 from collections.abc import Mapping, Sequence
@@ -27,6 +29,15 @@ CORE = "sh-core"
 def _log(echo: bool, text: str) -> None:
     if echo:
         print(text, file=sys.stderr, flush=True)
+
+
+def _load_1m() -> float:
+    """The machine's 1-minute load average (NaN where the OS has none): a case's timings are
+    only comparable with the load they were measured under."""
+    try:
+        return float(os.getloadavg()[0])
+    except OSError:
+        return math.nan
 
 
 def table_name(scene_label: str | None = None) -> str:
@@ -116,6 +127,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
             moderate_exr = None
             for case in method_cases_:
                 folder = root / method / case.name.replace("=", "-").replace("/", "-")
+                load_before = _load_1m()
                 measured = run_case(method, case, profile=profile, base=base,
                                     results_path=results_path, out_dir=folder,
                                     moderate_exr=moderate_exr, timeout_s=timeout_s)
@@ -131,6 +143,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                        "outcome": outcome, "reason": reason,
                        "moderate_psnr_masked": (moderate or {}).get("psnr_masked"),
                        "moderate_flip_masked": (moderate or {}).get("flip_masked"),
+                       "load_1m": max(load_before, _load_1m()),
                        **{k: v for k, v in measured.items() if k != "image_exr"}}
                 measurements.record(table, [row], results_path=results_path, run_id=run_id,
                                     profile=profile, renderer=measured.get("renderer") or "",

@@ -1,8 +1,10 @@
 """``reports/table-stability.{md,csv}``: one row per (method, case), from the stored rows only.
 
 The Markdown starts with a per-method summary line ("vertex: ok in 14 cases, degraded at
-light=below-horizon (...), refused 2 (...)"), then, for each method, its table, and ends with
-what a user should do instead for every ``degraded`` row. The CSV holds every stored number.
+light=below-horizon (...), refused 2 (...)"), then what was not measured (given the catalogue:
+a registered method without rows is listed as not measured, never silently absent), then, for
+each method, its table, and ends with what a user should do instead for every ``degraded`` row.
+The CSV holds every stored number (measured rows only).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import statistics
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -25,7 +28,8 @@ CSV_COLUMNS = (
     "image_peak", "reference_peak", "artifact_peak", "storage_dtype", "storage_max", "overflow",
     "underflow", "precompute_s", "precompute_cached", "memory_bytes", "artifact_bytes",
     "peak_rss_bytes", "frame_ms", "wall_s", "status", "run_id", "git_sha", "profile",
-    "renderer", "device", "ringing", "rel_l2", "advice", "note")
+    "renderer", "device", "ringing", "rel_l2", "advice", "note", "load_1m", "timestamp",
+    "partial_run")
 
 
 def _num(value: Any, fmt: str = ".2f") -> str:
@@ -67,19 +71,111 @@ def method_summary(method: str, rows: Sequence[Mapping[str, Any]]) -> str:
     return f"{method}: " + ", ".join(parts)
 
 
-def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
-    """The Markdown report of one matrix run's stored rows."""
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+def _missing(rows: Sequence[Mapping[str, Any]],
+             expected: Mapping[str, Sequence[str]]) -> dict[str, list[str]]:
+    """Per expected method, its catalogue cases without a row (in catalogue order)."""
+    have = {(r["method"], r["case"]) for r in rows}
+    return {m: [c for c in names if (m, c) not in have] for m, names in expected.items()}
+
+
+def coverage_lines(rows: Sequence[Mapping[str, Any]],
+                   expected: Mapping[str, Sequence[str]] | None,
+                   notes: Sequence[str] = ()) -> list[str]:
+    """The report's "Not measured" section: every expected case without a stored row.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        The report's rows.
+    expected : mapping of str to sequence of str, or None
+        Method name -> its catalogue's case names (every registered method for a report of the
+        whole store). None: no coverage section (nothing to compare with).
+    notes : sequence of str
+        Why cases were not measured, as the person who wrote the report states it.
+
+    Returns
+    -------
+    list of str
+        Markdown lines (empty without ``expected``).
+    """
+    if expected is None:
+        return []
+    missing = _missing(rows, expected)
+    total = sum(len(v) for v in expected.values())
+    absent = sum(len(v) for v in missing.values())
+    lines = ["", "## Not measured", "",
+             f"{total - absent} of the {total} catalogue cases of {len(expected)} methods have a "
+             f"stored row; {absent} have none"
+             + (":" if absent else ".")]
+    if absent:
+        lines.append("")
+    for method, names in missing.items():
+        if not names:
+            continue
+        mine = [r for r in rows if r["method"] == method]
+        if not mine:
+            lines.append(f"- {method}: **not measured** (no stored row; {len(names)} cases in "
+                         "its catalogue)")
+            continue
+        walls = sorted(float(r["wall_s"]) for r in mine
+                       if isinstance(r.get("wall_s"), (int, float)) and math.isfinite(r["wall_s"]))
+        took = (f"; its measured cases took {_duration(statistics.median(walls))} median, "
+                f"{_duration(walls[-1])} at most" if walls else "")
+        lines.append(f"- {method}: {len(names)} of {len(expected[method])} cases not measured"
+                     f"{took}: {', '.join(f'`{n}`' for n in names)}")
+    stale = sorted({(r["method"], r["case"]) for r in rows if r["method"] in expected
+                    and r["case"] not in set(expected[r["method"]])})
+    if stale:
+        lines += ["", "Stored cases no longer in the catalogue (kept): "
+                  + ", ".join(f"{m} `{c}`" for m, c in stale)]
+    if notes:
+        lines += ["", "Why:", ""] + [f"- {n}" for n in notes]
+    return lines
+
+
+def _count(rows: Sequence[Mapping[str, Any]], method: str, *, partial: bool = False) -> int:
+    return sum(r["method"] == method and (not partial or bool(r.get("partial_run"))) for r in rows)
+
+
+def _newest_revision(rows: Sequence[Mapping[str, Any]]) -> str:
+    stamped = [r for r in rows if r.get("timestamp")]
+    newest = max(stamped, key=lambda r: str(r["timestamp"])) if stamped else rows[-1]
+    return str(newest.get("git_sha", "?"))
+
+
+def _load_text(rows: Sequence[Mapping[str, Any]]) -> str:
+    loads = [float(r["load_1m"]) for r in rows
+             if isinstance(r.get("load_1m"), (int, float)) and math.isfinite(r["load_1m"])]
+    if not loads:
+        return ""
+    return (f" Load (1-min average, the higher of each case's start and end) "
+            f"{min(loads):.2f}-{max(loads):.2f} over the {len(loads)} rows that recorded it.")
+
+
+def format_markdown(rows: Sequence[Mapping[str, Any]], *,
+                    expected: Mapping[str, Sequence[str]] | None = None,
+                    notes: Sequence[str] = ()) -> str:
+    """The Markdown report of stored rows.
+
+    ``expected`` (method -> catalogue case names) adds the "Not measured" section and a
+    summary line for every expected method without rows (:func:`coverage_lines`).
+    """
     methods = list(dict.fromkeys(r["method"] for r in rows))
     first = rows[0] if rows else {}
     totals = Counter(r["outcome"] for r in rows)
     revisions = list(dict.fromkeys(str(r.get("git_sha", "?")) for r in rows))
     shas = (f"`{revisions[0]}`" if len(revisions) == 1 else
-            f"at {len(revisions)} revisions (newest row `{revisions[-1]}`)")
+            f"at {len(revisions)} revisions (newest row `{_newest_revision(rows)}`)")
     devices = ", ".join(dict.fromkeys(str(r.get("device", "?")) for r in rows))
     lines = ["# Numerical stability at the extremes (issue #15)", "",
              f"Profile `{first.get('profile', '?')}`, code {shas} (per row in the CSV), "
              f"device {devices}. One view per case, path reference (Mitsuba). "
-             f"Outcomes: {', '.join(f'{totals.get(o, 0)} {o}' for o in OUTCOMES)}.", "",
+             f"Outcomes: {', '.join(f'{totals.get(o, 0)} {o}' for o in OUTCOMES)}."
+             + _load_text(rows), "",
              f"`degraded`: finite, but masked PSNR more than {PSNR_MARGIN_DB:g} dB below, or "
              f"masked FLIP more than {FLIP_MARGIN:g} above, the method's `moderate` case (its "
              "profile defaults on the same base scene under `sky`). `refused`: a one-line error "
@@ -93,11 +189,15 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "n′ = d, probes inside a solid block, SDF sphere tracing with |∇d| = 0.01; wavelet "
              "k = 1 / all and keep = 1 are knob cases.", "", "## Summary", ""]
     lines += [f"- {method_summary(m, [r for r in rows if r['method'] == m])}" for m in methods]
+    unmeasured = [m for m in (expected or {}) if m not in methods]
+    lines += [f"- {m}: **not measured** (no stored row)" for m in unmeasured]
     partial = [m for m in methods if any(r.get("partial_run") for r in rows if r["method"] == m)]
     if partial:
-        lines += ["", "Partial (the run was stopped before its end; the cases listed are all that "
-                  "was measured): " + ", ".join(
-                      f"{m} ({sum(r['method'] == m for r in rows)} cases)" for m in partial)]
+        lines += ["", "Partial: rows from matrix runs stopped before their end (each is still the "
+                  "case's newest measurement; `partial_run` in the CSV, † in the tables): "
+                  + ", ".join(f"{m} ({_count(rows, m, partial=True)} of {_count(rows, m)} rows)"
+                              for m in partial)]
+    lines += coverage_lines(rows, expected, notes)
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
         if mine[0].get("group") == "sh-core":
@@ -118,7 +218,8 @@ def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
                     f"{_num(r.get('artifact_peak'), '.3g')} / {_num(r.get('storage_max'), '.3g')} "
                     f"({r.get('storage_dtype')})")
             lines.append(
-                f"| {r['case']} | **{r['outcome']}** | {_num(r.get('psnr_masked'))} | "
+                f"| {r['case']}{' †' if r.get('partial_run') else ''} | **{r['outcome']}** | "
+                f"{_num(r.get('psnr_masked'))} | "
                 f"{_num(r.get('flip_masked'), '.3f')} | {_num(r.get('psnr_vs_moderate'))} | "
                 f"{peak} | "
                 f"{_num(r.get('overflow'), 'd')} | {_num(r.get('underflow'), 'd')} | "
@@ -152,18 +253,22 @@ def format_csv(rows: Sequence[Mapping[str, Any]]) -> str:
 
 
 def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path, *,
-                  stem: str = "table-stability") -> tuple[Path, Path]:
+                  stem: str = "table-stability",
+                  expected: Mapping[str, Sequence[str]] | None = None,
+                  notes: Sequence[str] = ()) -> tuple[Path, Path]:
     """Write ``<stem>.md`` and ``<stem>.csv`` into ``folder`` atomically; their paths.
 
     A file scene's matrix uses ``table-stability-<scene name>`` (the name carries the file's
-    content hash), so it never overwrites the committed ``table-stability.*``.
+    content hash), so it never overwrites the committed ``table-stability.*``. ``expected`` and
+    ``notes``: :func:`format_markdown`.
     """
     from ..cache import atomic_path
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     md, csv_path = folder / f"{stem}.md", folder / f"{stem}.csv"
-    for path, text in ((md, format_markdown(rows)), (csv_path, format_csv(rows))):
+    for path, text in ((md, format_markdown(rows, expected=expected, notes=notes)),
+                       (csv_path, format_csv(rows))):
         with atomic_path(path) as tmp:
             tmp.write_text(text)
     return md, csv_path

@@ -120,6 +120,20 @@ def test_cases_come_from_the_config_fields_and_their_declared_bounds():
                           "storage=float16 light=huge-constant"]
 
 
+def test_a_knob_that_needs_another_knob_gets_it_in_its_cases():
+    # wavelet-image reads sh_bands only with lighting='sh': its band cases must set it, or
+    # they would render the moderate (wavelet-lit) picture again and be called ok.
+    from prtbench.method import METHODS
+
+    image = {c.name: c for c in knob_cases(METHODS.get("wavelet-image"), profile="quick")}
+    bands = [c for c in image.values() if "sh_bands" in c.overrides]
+    assert [c.name for c in bands] == ["lighting=sh sh_bands=1", "lighting=sh sh_bands=2",
+                                       "lighting=sh sh_bands=64"]
+    assert all(c.overrides["lighting"] == "sh" and "lighting=sh" in c.note for c in bands)
+    vertex = {c.name: c for c in knob_cases(METHODS.get("vertex"), profile="quick")}
+    assert vertex["sh_bands=1"].overrides == {"sh_bands": 1}
+
+
 def test_every_registered_method_gets_the_shared_cases():
     from prtbench.method import METHODS
 
@@ -134,6 +148,17 @@ def test_every_registered_method_gets_the_shared_cases():
     diffuse = [c.name for c in cases_mod.method_cases(METHODS.get("vertex"), profile="quick")]
     assert "shininess=1e+05" in glossy and not any(n.startswith("shininess") for n in diffuse)
     assert "storage=float16" in glossy and "storage=float16" not in diffuse
+
+
+def test_every_case_of_every_method_says_what_to_do_instead():
+    # The report prints a case's advice for each degraded row: a case without one would leave
+    # the user with "None".
+    from prtbench.method import METHODS
+
+    for name in METHODS.names():
+        cases = cases_mod.method_cases(METHODS.get(name), profile="quick")
+        assert len({c.name for c in cases}) == len(cases), name
+        assert [c.name for c in cases if c.name != "moderate" and not c.advice.strip()] == [], name
 
 
 # --- lights ------------------------------------------------------------------------------------
@@ -297,3 +322,63 @@ def test_from_store_merges_the_newest_row_of_each_case_and_marks_partial_runs(tm
     assert [(r["method"], r["case"], r["outcome"], r["partial_run"]) for r in rows] == [
         ("a", "moderate", "degraded", True), ("a", "light=black", "ok", True),
         ("b", "moderate", "ok", False)]
+
+
+def test_report_lists_what_the_catalogue_has_and_the_store_does_not():
+    from prtbench.stability.report import coverage_lines, format_markdown
+
+    rows = [{"method": "m", "case": "moderate", "outcome": "ok", "reason": "", "wall_s": 10.0,
+             "git_sha": "old", "timestamp": "2026-12-02T02:00:00+00:00", "load_1m": 1.25},
+            {"method": "m", "case": "light=black", "outcome": "ok", "reason": "", "wall_s": 300.0,
+             "git_sha": "new", "timestamp": "2026-12-02T10:00:00+00:00", "load_1m": 2.5,
+             "partial_run": True},
+            {"method": "m", "case": "gone", "outcome": "ok", "reason": "", "git_sha": "old",
+             "timestamp": "2026-12-02T01:00:00+00:00"}]
+    expected = {"m": ["moderate", "light=black", "scale=1e-04", "sh_bands=1"],
+                "absent": ["moderate", "keep=1"]}
+    lines = coverage_lines(rows, expected, ["trained cases take 10 min each"])
+    text = "\n".join(lines)
+    # 2 of the 6 catalogue cases have rows; the stale 'gone' row does not count as coverage.
+    assert "2 of the 6 catalogue cases of 2 methods have a stored row; 4 have none" in text
+    assert ("- m: 2 of 4 cases not measured; its measured cases took 2.6 min median, 5.0 min "
+            "at most: `scale=1e-04`, `sh_bands=1`") in text
+    assert "- absent: **not measured** (no stored row; 2 cases in its catalogue)" in text
+    assert "m `gone`" in text and "- trained cases take 10 min each" in text
+    assert coverage_lines(rows, None) == []
+    md = format_markdown(rows, expected=expected)
+    # A registered method without rows is in the summary too, not silently absent.
+    assert "- absent: **not measured** (no stored row)" in md
+    assert "| light=black † | **ok** |" in md and "m (1 of 3 rows)" in md
+    assert "newest row `new`" in md and "Load (1-min average" in md and "1.25-2.50" in md
+    full = coverage_lines(rows[:2], {"m": ["moderate", "light=black"]})
+    assert full[-1].endswith("have a stored row; 0 have none.")
+
+
+def test_core_case_names_are_the_rows_core_rows_measures():
+    from prtbench.stability.core import core_case_names, core_rows
+
+    assert core_case_names(profile="smoke") == [r["case"] for r in core_rows(profile="smoke")]
+    assert len(core_case_names(profile="quick")) == 2 * 16 * 3 + 5
+
+
+def test_from_store_report_names_every_registered_method_without_rows(tmp_path, capsys):
+    from prtbench import measurements
+    from prtbench.cli import main
+    from prtbench.method import METHODS
+    from prtbench.stability.matrix import TABLE
+
+    store, reports = tmp_path / "r.sqlite", tmp_path / "reports"
+    run_id = measurements.new_run_id()
+    measurements.record(TABLE, [{"method": "vertex", "case": "moderate", "outcome": "ok",
+                                 "reason": "the moderate setting", "wall_s": 12.0}],
+                        results_path=store, run_id=run_id, profile="smoke", git_sha="abc")
+    measurements.complete_report("table", TABLE, profile="smoke", run_id=run_id, members={},
+                                 results_path=store, git_sha="abc")
+    status = main(["stability", "--from-store", "--profile", "smoke", "--results", str(store),
+                   "--reports", str(reports), "--note", "not run: out of time"])
+    assert status == 0, capsys.readouterr().err
+    md = (reports / "table-stability.md").read_text()
+    others = [m for m in METHODS.names() if m != "vertex"]
+    assert all(f"- {m}: **not measured** (no stored row)" in md for m in [*others, "sh-core"])
+    assert "- vertex: ok in 1 cases" in md and "- not run: out of time" in md
+    assert "- vertex: " in md.split("## Not measured")[1]  # its other cases are listed
