@@ -295,3 +295,25 @@ def test_hashgrid_beats_vertex_features_on_held_out_lights():
         psnr[features] = float(np.mean(values))
     print(f"held-out indirect masked PSNR: {psnr}")
     assert psnr["hashgrid"] > psnr["vertex"] + 0.5, psnr
+
+
+def test_sh_baseline_indirect_is_the_bounce_light_sloan_matrix_adds():
+    from prtbench.neural_wavelet.evaluate import sh_baseline
+
+    light = get_light("sky")
+    # A lone plane reflects nothing onto itself: its SH indirect is zero to rounding. With a
+    # sphere over it, the bounce matrices add light (the sphere lights the ground below it).
+    lone = get_scene("plane", variant="glossy", subdivisions=4).with_views(1)
+    scene = _scene()
+    sums = {}
+    for name, s in (("lone", lone), ("pair", scene)):
+        baseline = sh_baseline(s, width=40, height=30, sh_bands=3, rays_per_point=64)
+        try:
+            view = s.trajectory.views[0]
+            indirect = baseline.indirect(view, light)
+            full = baseline.full.render(view, light)
+        finally:
+            baseline.release()
+        assert indirect.shape == (30, 40, 3) and np.isfinite(indirect).all()
+        sums[name] = float(np.abs(indirect).sum() / max(np.abs(full).sum(), 1e-12))
+    assert sums["lone"] < 1e-4 and sums["pair"] > 1e-3, sums
