@@ -54,3 +54,52 @@ def indirect_metrics(renderer, scene, light, views, *, width: int, height: int, 
                                          mask=mask)
         out.append({**values, "noise_display": noise})
     return out
+
+
+class DifferenceIndirect:
+    """The indirect part of a method that renders full and direct light separately.
+
+    ``indirect(view, light)`` = ``full.render(view, light) − direct.render(view, light)``: for
+    ``sloan-matrix`` with ``bounces=N`` and the same matrices with ``bounces=0`` it is the
+    interreflected light the SH transfer adds, measured exactly as the neural indirect is
+    (:func:`indirect_metrics` against the same ``full − direct`` reference).
+
+    Parameters
+    ----------
+    full, direct : prtbench.method.Renderer
+        Renderers of the same size; each ``render`` returns (H, W, 3) linear radiance.
+    """
+
+    def __init__(self, full, direct):
+        self.full, self.direct = full, direct
+
+    def indirect(self, view, light) -> np.ndarray:
+        """(H, W, 3) float32: full − direct."""
+        return (self.full.render(view, light) - self.direct.render(view, light)).astype(
+            np.float32)
+
+    def release(self) -> None:
+        self.full.release()
+        self.direct.release()
+
+
+def sh_baseline(scene, *, width: int, height: int, bounces: int = 1, sh_bands: int = 5,
+                rays_per_point: int = 256, progress: bool = False) -> DifferenceIndirect:
+    """The SH transport-matrix baseline of the paper's comparisons: ``sloan-matrix`` with
+    ``bounces`` (Sloan 2002 §6, glossy at the bounce) minus the same matrices without
+    (:class:`DifferenceIndirect`); precomputed (and cached) on ``scene``."""
+    from prtbench.method import METHODS, load_or_precompute
+
+    cls = METHODS.get("sloan-matrix")
+    renderers = []
+    try:
+        for b in (int(bounces), 0):
+            config = cls.make_config({"sh_bands": int(sh_bands), "bounces": b,
+                                      "rays_per_point": int(rays_per_point)})
+            artifact = load_or_precompute(cls, scene, config, progress=progress)
+            renderers.append(cls.renderer(scene, artifact, config, width=width, height=height))
+    except BaseException:
+        for r in renderers:
+            r.release()
+        raise
+    return DifferenceIndirect(*renderers)

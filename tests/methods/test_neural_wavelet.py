@@ -248,7 +248,7 @@ def test_glossy_comparison_refuses_a_scene_without_glossy_materials():
         require_glossy(_scene("diffuse"))
 
 
-# --- must hold (issue #19): the hash grid beats vertex features on held-out lights ---------------
+# --- must hold (issue #19): the hash grid beats vertex features and SH on held-out lights -----
 
 #: The reduced case: glossy sphere over a glossy ground (subdivided so that the vertex variant has
 #: 81 ground vertices to store features on), HDRIs rotated twice for training, two HDRIs held out.
@@ -265,18 +265,38 @@ COMPARISON = {
 @pytest.mark.slow
 @pytest.mark.assets
 @pytest.mark.xfail(strict=False, reason=(
-    "not met at this reduced size (measured at c79e22b on a loaded 2-core machine): held-out "
-    "indirect masked PSNR hashgrid 24.00 dB vs vertex 24.42 dB, although the hash grid's "
-    "training loss is 12x lower (4.95 vs 61.5): it overfits 64 training images; see the "
-    "nwcore report"))
+    "not met at this reduced size. Held-out indirect masked PSNR (sunrise, sunset; 3 views, "
+    "64x48, 256-spp reference): a black image scores 22.1 dB, the SH baseline (sloan-matrix "
+    "5 bands, bounces=1 minus bounces=0) 29.7 dB, hash grid 24.00 / vertex 24.42 dB (c79e22b): "
+    "both neural variants are ~2 dB above black and ~5 dB below SH, the hash grid overfits "
+    "(training loss 12x lower than vertex). With 4x the training spp (128), 4 light rotations "
+    "and a coarser grid (base_resolution 4): hash grid 25.55 vs vertex 25.80 dB, still below "
+    "SH. Measured by the nwmust helper; see its report"))
 def test_hashgrid_beats_vertex_features_on_held_out_lights():
+    from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline
+
     cls = METHODS.get("neural-wavelet")
     scene = get_scene("sphere-over-plane", variant="glossy", sphere_segments=24,
                       plane_subdivisions=8).with_views(3)
-    from prtbench.neural_wavelet.evaluate import indirect_metrics
+    width, height, heldout = 64, 48, COMPARISON["heldout_lights"]
 
-    psnr = {}
-    for features in ("hashgrid", "vertex"):
+    class Black:  # the trivial image every variant must clearly beat
+        def indirect(self, view, light):
+            return np.zeros((height, width, 3), np.float32)
+
+    def held_out_psnr(renderer) -> float:
+        return float(np.mean([m["psnr_masked"] for name in heldout
+                              for m in indirect_metrics(renderer, scene, get_light(name),
+                                                        scene.trajectory.views, width=width,
+                                                        height=height, spp=256)]))
+
+    psnr = {"black": held_out_psnr(Black())}
+    baseline = sh_baseline(scene, width=width, height=height, bounces=1, sh_bands=5)
+    try:
+        psnr["sh"] = held_out_psnr(baseline)
+    finally:
+        baseline.release()
+    for features in ("hashgrid", "vertex"):  # same data, same steps and batch for both
         config = cls.make_config({**COMPARISON, "features": features}, profile="quick")
         artifact = load_or_precompute(cls, scene, config, progress=False)
         meta = artifact.meta
@@ -284,14 +304,34 @@ def test_hashgrid_beats_vertex_features_on_held_out_lights():
               f"{meta['pixels_per_s']:.0f} pixels/s, loss {meta['loss_first']:.4g} -> "
               f"{meta['loss_last']:.4g}, bytes {meta['bytes']}")
         assert meta["loss_last"] < 0.5 * meta["loss_first"]
-        renderer = cls.renderer(scene, artifact, config, width=64, height=48)
+        renderer = cls.renderer(scene, artifact, config, width=width, height=height)
         try:
-            values = [m["psnr_masked"] for name in config.heldout_lights
-                      for m in indirect_metrics(renderer, scene, get_light(name),
-                                                scene.trajectory.views, width=64, height=48,
-                                                spp=256)]
+            psnr[features] = held_out_psnr(renderer)
         finally:
             renderer.release()
-        psnr[features] = float(np.mean(values))
     print(f"held-out indirect masked PSNR: {psnr}")
+    assert psnr["sh"] > psnr["black"] + 3.0, psnr  # the SH baseline is a real one
     assert psnr["hashgrid"] > psnr["vertex"] + 0.5, psnr
+    assert psnr["hashgrid"] > psnr["sh"] + 0.5, psnr
+
+
+def test_sh_baseline_indirect_is_the_bounce_light_sloan_matrix_adds():
+    from prtbench.neural_wavelet.evaluate import sh_baseline
+
+    light = get_light("sky")
+    # A lone plane reflects nothing onto itself: its SH indirect is zero to rounding. With a
+    # sphere over it, the bounce matrices add light (the sphere lights the ground below it).
+    lone = get_scene("plane", variant="glossy", subdivisions=4).with_views(1)
+    scene = _scene()
+    sums = {}
+    for name, s in (("lone", lone), ("pair", scene)):
+        baseline = sh_baseline(s, width=40, height=30, sh_bands=3, rays_per_point=64)
+        try:
+            view = s.trajectory.views[0]
+            indirect = baseline.indirect(view, light)
+            full = baseline.full.render(view, light)
+        finally:
+            baseline.release()
+        assert indirect.shape == (30, 40, 3) and np.isfinite(indirect).all()
+        sums[name] = float(np.abs(indirect).sum() / max(np.abs(full).sum(), 1e-12))
+    assert sums["lone"] < 1e-4 and sums["pair"] > 1e-3, sums
