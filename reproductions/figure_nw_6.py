@@ -28,6 +28,7 @@ Entry point: ``"nw-6" = "reproductions.figure_nw_6:FIGURE"``.
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,10 @@ TABLE = "figure-nw-6"
 #: Sampled pixels and gather rays per pixel of the ground truth, per profile.
 SIZES = {"smoke": (4, 64), "quick": (24, 256), "paper": (256, 2048)}
 SEED = 0x4E5736  # "NW6"
+#: Gather hits whose dense Haar rows are formed at once (2 × 6N² float64 each).
+HITS_PER_CHUNK = 256
+#: Pixels whose learnt transport over all wavelets is evaluated at once.
+PIXELS_PER_CHUNK = 8
 
 
 def k_grid(m: int) -> list[int]:
@@ -127,22 +132,27 @@ def ground_truth_transport(scene, rows: dict, *, n: int, gather: int, seed: int,
         obj = object_of_face[face]
         sq = shin[obj]
 
-        def lobes(sl, dirs_t, rq=rq, sq=sq):
+        def lobes(sl, dirs_t, rq=rq, sq=sq, offset=0):
+            sl = slice(sl.start + offset, sl.stop + offset)  # points of this chunk of hits
             dot = np.maximum(cosines(rq[sl], dirs_t), 0.0)
             s = sq[sl, None]
             spec = (s + 1.0) / (2.0 * math.pi) * np.power(dot, s)
             return np.stack([np.ones_like(spec), spec], axis=1).astype(np.float32)
 
-        transport, _ = compute_wavelet_transport(scene, q, nq, n=n, keep=1.0, lobes=lobes,
-                                                 n_lobes=2, tracer=tracer, progress=progress)
-        dense = transport.dense().reshape(len(idx), 2, m)  # (H, lobe, M)
-        shade = kd[obj][:, None, :] / math.pi * dense[:, 0, :, None] \
-            + ks[obj][:, None, :] * dense[:, 1, :, None]  # (H, M, 3) radiance towards x
         dot = np.maximum(d[idx] @ rx[p], 0.0)
         f = kdx[p][None] / math.pi + ksx[p][None] * ((sx[p] + 1.0) / (2 * math.pi)
                                                      * dot ** sx[p])[:, None]  # (H, 3)
         weight = f * (cos[idx] / pdf[p][idx])[:, None] / gather
-        out[p] = np.einsum("hc,hmc->mc", weight, shade)
+        for start in range(0, len(idx), HITS_PER_CHUNK):  # bounds the dense rows' memory
+            sl = slice(start, start + HITS_PER_CHUNK)
+            transport, _ = compute_wavelet_transport(
+                scene, q[sl], nq[sl], n=n, keep=1.0, lobes=partial(lobes, offset=start),
+                n_lobes=2, tracer=tracer, progress=progress)
+            dense = transport.dense().reshape(-1, 2, m)  # (h, lobe, M)
+            # (h, M, 3): radiance of each hit towards x per unit of each wavelet
+            shade = kd[obj[sl]][:, None, :] / math.pi * dense[:, 0, :, None] \
+                + ks[obj[sl]][:, None, :] * dense[:, 1, :, None]
+            out[p] += np.einsum("hc,hmc->mc", weight[sl], shade)
     return out
 
 
@@ -219,7 +229,10 @@ class FigureNw6(Figure):
                                ("positions", "normals", "wo", "kd", "ks", "shininess")),
                              torch.as_tensor(rows["triangles"], dtype=torch.int64))
         with torch.no_grad():
-            learnt = (model.transport(inputs, np.arange(m)) * model.target_scale).double().numpy()
+            learnt = np.concatenate([
+                (model.transport(inputs.rows(slice(i, i + PIXELS_PER_CHUNK)), np.arange(m))
+                 * model.target_scale).double().numpy()
+                for i in range(0, len(pick), PIXELS_PER_CHUNK)])
         coeffs = light_coefficients(light, n).astype(np.float64)
         order = light_order(coeffs)
         for series, t in (("ground truth", gt), ("learnt", learnt)):

@@ -64,7 +64,7 @@ class TableNw1(Reproduction):
         return (
             "Per profile: `smoke` 1 view per view set, 1 light; `quick` 2 views per view set "
             "(far: four-animals' held-out helix; near: views of the training orbit, which no "
-            "training camera sits on), 1 held-out light (`sunset`); `paper` 30 + 30 views, "
+            "training camera sits on), 1 held-out light (`sunrise`); `paper` 30 + 30 views, "
             "both held-out lights. Every number is the mean over those rows.",
             "Masked metrics (geometry pixels). Full = indirect + the same Mitsuba direct-only "
             "render for every row (the neural method's own direct term, direct_spp samples, "
@@ -78,6 +78,9 @@ class TableNw1(Reproduction):
             "Paper columns: no denoising in Table 1's `Ours ✗`; Table 6 prints denoised rows "
             "only (its hash grid row is Table 1's denoised 29.62 / 26.21), and has no near "
             "views. We never denoise. Frame times are in table-nw-2.",
+            "precompute s: the networks' Mitsuba training renders + training (train s, at train "
+            "pixels/s = steps × batch_pixels / train s, on this machine's CPU torch); the SH "
+            "baseline's transfer and bounce precompute.",
         )
 
     def cells(self, profile: str) -> list:
@@ -102,7 +105,8 @@ class TableNw1(Reproduction):
         header = ["views", "configuration", "rows"]
         for m in METRICS:
             header += [f"{m.upper()} full", f"{m.upper()} indirect"]
-        header += ["resident bytes", "precompute s", "paper PSNR full / ind.",
+        header += ["resident bytes", "precompute s", "train s", "train pixels/s",
+                   "paper PSNR full / ind.",
                    "paper SSIM full / ind.", "paper source"]
         rows = []
         for view_set in nw.VIEW_SETS:
@@ -116,7 +120,8 @@ class TableNw1(Reproduction):
                             nw.mean_of(part, f"metric_indirect_{m}_masked")]
                 paper = PAPER.get((label, view_set), ("—", "—", "—"))
                 row += [int(part["memory_bytes"].iloc[0]), float(part["precompute_s"].iloc[0]),
-                        *paper]
+                        nw.mean_of(part, "metric_train_s"),
+                        nw.mean_of(part, "metric_pixels_per_s"), *paper]
                 rows.append(row)
         return header, rows
 

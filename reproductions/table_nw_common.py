@@ -57,6 +57,8 @@ SETUPS = {
 VARIANT = "glossy"
 VIEW_SETS = ("far", "near")
 CELL_PREFIX = "nw:"
+#: Training facts of the model (its cached stats) stored with each of its rows.
+TRAINING_FACTS = ("train_s", "pixels_per_s", "data_render_s", "loss_first", "loss_last")
 
 
 @dataclass
@@ -273,6 +275,7 @@ def measure_nw(writer: RowWriter, st: Setup, config, label: dict, *, view_sets=V
                                                     width=st.width, height=st.height)
                     values.update({f"bytes_{k}": float(v)
                                    for k, v in renderer.model.resident_bytes().items()})
+                    values.update({k: float(artifact.meta[k]) for k in TRAINING_FACTS})
                     writer.add(method=cls.name, config=config, scene=scene, light=light.name,
                                view_index=index, view=view,
                                label={**label, "views": view_set}, metrics=values,
@@ -338,6 +341,8 @@ def measure_sloan(writer: RowWriter, st: Setup, label: dict, *, bounces: int, di
 
 def mean_of(part, column: str) -> float:
     """Mean of a metric column over rows (NaN for none), as the tables print it."""
+    if column not in part:
+        return math.nan
     values = [float(v) for v in part[column] if v is not None and v == v]
     return float(np.mean(values)) if values else math.nan
 
