@@ -52,7 +52,7 @@ SETUPS = {
     "quick": {"scene": "four-animals", "params": {"ground_subdivisions": 16},
               "views": 2, "lights": 1, "sloan": {"sh_bands": 4, "rays_per_point": 128}},
     "paper": {"scene": "four-animals", "params": {"ground_subdivisions": 64},
-              "views": 30, "lights": 2, "sloan": {"sh_bands": 8, "rays_per_point": 4096}},
+              "views": 30, "lights": 2, "sloan": {"sh_bands": 6, "rays_per_point": 4096}},
 }
 VARIANT = "glossy"
 VIEW_SETS = ("far", "near")
