@@ -248,6 +248,8 @@ def format_csv(rows: Sequence[Mapping[str, Any]]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
     for r in rows:
+        # A fresh run's rows have no partial_run (they are the run); the store's say False.
+        r = {**r, "partial_run": bool(r.get("partial_run"))}
         writer.writerow([_cell(r.get(c)) for c in CSV_COLUMNS])
     return buf.getvalue()
 
