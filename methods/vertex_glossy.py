@@ -427,7 +427,9 @@ class GlossyVertexRenderer(RasterRenderer):
                          defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": mode,
                                   **({"MATRIX_RGB": 1} if rgb else {})},
                          extra_attributes=material_attributes(scene))
-        limit = int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+        from prtbench import gl
+
+        limit = gl.storage_block_limit(self.ctx)
         if limit and data.nbytes > limit:
             RasterRenderer.release(self)
             raise InvalidInputError(

@@ -95,6 +95,13 @@ def renderer_string(ctx=None) -> str:
     return f"{ctx.info['GL_RENDERER']} / {ctx.info['GL_VERSION']}"
 
 
+def storage_block_limit(ctx=None) -> int:
+    """``GL_MAX_SHADER_STORAGE_BLOCK_SIZE`` in bytes of ``ctx`` (default: the process context),
+    0 if the driver does not say. Mesa llvmpipe reports 128 MiB; NVIDIA about 2 GiB."""
+    ctx = ctx or create_context()
+    return int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+
+
 class RenderTarget:
     """A framebuffer of RGBA32F colour attachments and a 24-bit depth texture, no MSAA.
 

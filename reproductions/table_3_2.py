@@ -112,7 +112,7 @@ def gl_storage_block_limit() -> int:
     """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of this machine's GL context (0 if unknown)."""
     from prtbench import gl
 
-    return int(gl.create_context().info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+    return gl.storage_block_limit()
 
 
 def stored_block_limit(frame) -> int:

@@ -49,8 +49,10 @@ SETUPS = {
     "smoke": {"scene": "sphere-over-plane", "params": {"sphere_segments": 16,
                                                        "plane_subdivisions": 4},
               "views": 1, "lights": 1, "sloan": {"sh_bands": 3, "rays_per_point": 64}},
+    # quick: 3 bands, since four-animals' 84,702 vertices × 4⁴ floats × RGB (bounces) are
+    # 248 MiB of matrices, over llvmpipe's 128 MiB shader-storage block limit.
     "quick": {"scene": "four-animals", "params": {"ground_subdivisions": 16},
-              "views": 2, "lights": 1, "sloan": {"sh_bands": 4, "rays_per_point": 128}},
+              "views": 2, "lights": 1, "sloan": {"sh_bands": 3, "rays_per_point": 128}},
     "paper": {"scene": "four-animals", "params": {"ground_subdivisions": 64},
               "views": 30, "lights": 2, "sloan": {"sh_bands": 6, "rays_per_point": 4096}},
 }
@@ -293,6 +295,31 @@ def measure_nw(writer: RowWriter, st: Setup, config, label: dict, *, view_sets=V
 def sloan_config(profile: str, *, bounces: int):
     return sloan_class().make_config({**SETUPS[profile]["sloan"], "bounces": int(bounces)},
                                      profile=profile)
+
+
+def check_sloan(st: Setup, *, bounces: int) -> None:
+    """Refuse before any training or reference render if the SH baseline cannot run here: its
+    own validate (``max_bytes``) and this GL's shader-storage block limit, which its renderer
+    would otherwise hit only after the precompute (InvalidInputError, exit 2)."""
+    from prtbench import gl
+    from prtbench.errors import InvalidInputError
+
+    cls = sloan_class()  # registers methods.vertex_glossy
+    from methods.vertex_glossy import matrix_bytes, matrix_channels
+
+    limit = gl.storage_block_limit()
+    for b in (bounces, 0):
+        cfg = sloan_config(st.profile, bounces=b)
+        cls.validate(st.train_scene, cfg)
+        size = matrix_bytes(st.train_scene.n_vertices, cfg.sh_bands,
+                            channels=matrix_channels(cfg))
+        if limit and size > limit:
+            raise InvalidInputError(
+                f"profile '{st.profile}': the SH baseline sloan-matrix sh_bands={cfg.sh_bands} "
+                f"bounces={b} needs {size / 2**20:.1f} MiB of matrices on "
+                f"{st.train_scene.n_vertices} vertices, over this GL's shader storage block limit "
+                f"of {limit / 2**20:.1f} MiB ({gl.renderer_string()}); accepted: a profile whose "
+                "baseline fits (smoke or quick here; paper needs a GPU driver)")
 
 
 def measure_sloan(writer: RowWriter, st: Setup, label: dict, *, bounces: int, direct_spp: int,

@@ -61,6 +61,25 @@ def test_a_scene_without_glossy_materials_is_refused(monkeypatch):
         nw.setup("smoke")
 
 
+def test_an_sh_baseline_over_the_gl_storage_limit_is_refused_before_training(monkeypatch,
+                                                                          tmp_path):
+    """smoke's 3-band RGB matrices on the 16-segment sphere and plane are ~0.1 MiB: a 64 KiB
+    limit must refuse them, naming the size and the limit, before anything is trained."""
+    from prtbench import gl
+    from reproductions.table_nw_1 import TABLE
+
+    st = nw.setup("smoke")
+    nw.check_sloan(st, bounces=1)  # fits this machine's GL
+    monkeypatch.setattr(gl, "storage_block_limit", lambda ctx=None: 64 * 1024)
+    trained = []
+    monkeypatch.setattr(nw, "train", lambda *a, **k: trained.append(a))
+    with pytest.raises(InvalidInputError, match=r"sh_bands=3 bounces=1 needs .* MiB .* limit "
+                                                r"of 0\.1 MiB"):
+        run_table(TABLE, profile="smoke", results_path=tmp_path / "r.sqlite",
+                  reports_dir=tmp_path, progress=False)
+    assert not trained and not list(tmp_path.iterdir())
+
+
 def test_table_nw_1_smoke_prints_the_stored_means(store, tmp_path):
     from reproductions.table_nw_1 import CONFIGS, TABLE
 
