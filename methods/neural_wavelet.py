@@ -144,6 +144,7 @@ class NeuralWavelet(Method):
 
     Config = NeuralWaveletConfig
     precompute_version = "1"
+    views_in_key = True  # its training cameras are derived from the trajectory's views
     main_knobs = ("light_terms", "log2_table")
     summary = ("neural wavelet PRT: hash grid x wavelet grid (CP) + MLP -> Haar transport of "
                "glossy indirect light, k lighting terms per frame (direct: offline Mitsuba)")

@@ -161,6 +161,10 @@ class Method(ABC):
     #: True for a method whose precompute belongs to the scene's views (per-pixel transport of
     #: one fixed view): the views then enter the artifact's cache key.
     fixed_view: ClassVar[bool] = False
+    #: True for a method whose precompute reads the scene's cameras without being tied to one
+    #: view (a network trained on renders around the trajectory): the views enter the
+    #: artifact's cache key too, so another trajectory is a different artifact.
+    views_in_key: ClassVar[bool] = False
     #: Knob settings that tie an otherwise light-free method to a light:
     #: ``{knob: (dependence, light-free value, why)}``.
     light_baking_knobs: ClassVar[Mapping[str, tuple[str, Any, str]]] = {}
@@ -259,7 +263,8 @@ def artifact_key(method_cls: type[Method], scene: "Scene", config: Any) -> str:
     # Duck-typed method classes (tests' stand-ins) need not derive from Method.
     identity = getattr(method_cls, "cache_identity", None)
     values = identity(config) if identity is not None else config_mod.to_dict(config)
-    if getattr(method_cls, "fixed_view", False):  # a per-pixel precompute: the view is an input
+    # A per-pixel precompute, or one trained from cameras around the views: the views are input.
+    if getattr(method_cls, "fixed_view", False) or getattr(method_cls, "views_in_key", False):
         from dataclasses import asdict
 
         views = [asdict(v) for v in scene.trajectory.views]

@@ -145,9 +145,10 @@ def setup(profile: str) -> Setup:
 def train(config, st: Setup, *, progress: bool = True):
     """(artifact, precompute_s) of ``config`` trained around ``st.train_scene``'s trajectory.
 
-    Calls the method's precompute directly rather than the artifact cache, whose key ignores
-    cameras: the trained model itself is cached by its data (training cameras included) and
-    knobs (:mod:`prtbench.neural_wavelet.train`), so this is a cache hit when trained before.
+    Calls the method's precompute directly rather than the artifact cache: the trained model
+    itself is cached by its data (training cameras included) and knobs
+    (:mod:`prtbench.neural_wavelet.train`), so this is a cache hit when trained before, and the
+    precompute_s it returns is the recorded data + training time.
     """
     cls = nw_class()
     cls.validate(st.train_scene, config)

@@ -240,6 +240,22 @@ def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, 
     assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*"))
 
 
+def test_artifact_key_holds_the_training_cameras():
+    """The training cameras are derived from the trajectory, so another trajectory of the same
+    geometry is another artifact (it was the same key once, and a cache hit returned a model
+    trained around other cameras); per-vertex transfer, which reads no camera, keeps one key."""
+    from prtbench.method import artifact_key
+
+    cls = METHODS.get("neural-wavelet")
+    config = cls.make_config({}, profile="smoke")
+    two, one = _scene(), _scene().with_views(1)
+    assert artifact_key(cls, two, config) == artifact_key(cls, _scene(), config)
+    assert artifact_key(cls, two, config) != artifact_key(cls, one, config)
+    vertex = METHODS.get("vertex")
+    vcfg = vertex.make_config({}, profile="smoke")
+    assert artifact_key(vertex, two, vcfg) == artifact_key(vertex, one, vcfg)
+
+
 def test_glossy_comparison_refuses_a_scene_without_glossy_materials():
     from prtbench.neural_wavelet.evaluate import require_glossy
 
