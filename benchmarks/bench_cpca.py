@@ -33,8 +33,15 @@ def _signals(n: int, d: int, *, clusters: int = 32, rank: int = 6, seed: int = 0
     centres = rng.normal(scale=2.0, size=(clusters, d))
     frames = rng.normal(size=(clusters, rank, d)) / np.sqrt(d)
     ids = rng.integers(0, clusters, n)
-    x = centres[ids] + np.einsum("nr,nrd->nd", rng.normal(size=(n, rank)), frames[ids])
-    return (x + 0.01 * rng.normal(size=(n, d))).astype(np.float32)
+    x = np.empty((n, d), np.float32)
+    # In chunks: frames[ids] for all of a dragon-sized N (871k × rank × d float64) would need
+    # tens of GB for a test input.
+    for lo in range(0, n, 16384):
+        part = ids[lo:lo + 16384]
+        x[lo:lo + len(part)] = (centres[part] + np.einsum(
+            "nr,nrd->nd", rng.normal(size=(len(part), rank)), frames[part])
+            + 0.01 * rng.normal(size=(len(part), d)))
+    return x
 
 
 def bench_fit(signals, clusters, dimension, pca_vectors, iterations) -> None:
