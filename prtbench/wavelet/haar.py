@@ -52,58 +52,26 @@ def forward(x: np.ndarray, *, dtype=np.float64) -> np.ndarray:
     ndarray, shape (..., N, N), ``dtype``
         Coefficients in the in-place layout of the module docstring.
     """
-    return forward_in_place(np.array(x, dtype=dtype, order="C", copy=True))
-
-
-def forward_in_place(x: np.ndarray, *, work: np.ndarray | None = None) -> np.ndarray:
-    """:func:`forward` of ``x`` computed in ``x`` itself, in its own dtype (the same bits).
-
-    Each step first forms the sums and differences of horizontal pairs, p ± q and t ± u, of
-    the whole current image into ``work`` (so the step can overwrite its input), then writes
-    the four quadrants from vertical pairs of those and halves the s×s block once: the
-    arithmetic of :func:`forward`, operation for operation, without its per-step temporaries.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., N, N), float32 or float64, C-contiguous
-        Overwritten with its coefficients.
-    work : ndarray, optional
-        Scratch of at least ``x.size`` elements of ``x``'s dtype, contiguous (a fresh one
-        otherwise); reusing one across calls saves its allocation.
-
-    Returns
-    -------
-    ndarray
-        ``x``.
-    """
-    n = _check(x)
-    if x.dtype.kind != "f" or not x.flags.c_contiguous:
-        raise InvalidInputError(f"in-place Haar of a {x.dtype} array with strides {x.strides}; "
-                                "accepted: a C-contiguous float array")
-    if work is None:
-        work = np.empty(x.size, dtype=x.dtype)
-    elif work.dtype != x.dtype or work.size < x.size or not work.flags.c_contiguous:
-        raise InvalidInputError(f"Haar scratch of {work.size} {work.dtype}; accepted: at least "
-                                f"{x.size} contiguous {x.dtype}")
-    out = x.reshape(-1, n, n)
-    b = len(out)
-    half = x.dtype.type(0.5)
+    out = np.array(x, dtype=dtype, copy=True)
+    n = _check(out)
     s = n
     while s > 1:
         h = s // 2
-        r = out[:, :s, :s].reshape(b, h, 2, h, 2)
-        size = b * h * 2 * h
-        sums = work[:size].reshape(b, h, 2, h)  # [:, :, 0] = p + q, [:, :, 1] = t + u
-        diffs = work[size:2 * size].reshape(b, h, 2, h)  # p − q, t − u
-        np.add(r[..., 0], r[..., 1], out=sums)
-        np.subtract(r[..., 0], r[..., 1], out=diffs)
-        np.add(sums[:, :, 0], sums[:, :, 1], out=out[:, :h, :h])  # LL
-        np.subtract(sums[:, :, 0], sums[:, :, 1], out=out[:, h:s, :h])  # HL
-        np.add(diffs[:, :, 0], diffs[:, :, 1], out=out[:, :h, h:s])  # LH
-        np.subtract(diffs[:, :, 0], diffs[:, :, 1], out=out[:, h:s, h:s])  # HH
-        out[:, :s, :s] *= half
+        r = out[..., :s, :s].reshape(*out.shape[:-2], h, 2, h, 2)
+        p, q = r[..., :, 0, :, 0], r[..., :, 0, :, 1]
+        t, u = r[..., :, 1, :, 0], r[..., :, 1, :, 1]
+        sum_top, sum_bottom = p + q, t + u
+        diff_top, diff_bottom = p - q, t - u
+        ll = 0.5 * (sum_top + sum_bottom)
+        hl = 0.5 * (sum_top - sum_bottom)
+        lh = 0.5 * (diff_top + diff_bottom)
+        hh = 0.5 * (diff_top - diff_bottom)
+        out[..., :h, :h] = ll
+        out[..., :h, h:s] = lh
+        out[..., h:s, :h] = hl
+        out[..., h:s, h:s] = hh
         s = h
-    return x
+    return out
 
 
 def inverse(c: np.ndarray) -> np.ndarray:

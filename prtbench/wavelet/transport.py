@@ -23,7 +23,6 @@ transport, which Ng 2003 also quantises (:mod:`prtbench.wavelet.sparse`).
 from __future__ import annotations
 
 import sys
-import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -91,15 +90,6 @@ def _records(vectors: np.ndarray) -> np.ndarray:
 def _vectors(records: np.ndarray) -> np.ndarray:
     """(R, 3) float32 view (row stride 16 bytes) of (R,) records from :func:`_records`."""
     return records.view(np.float32).reshape(-1, 4)[:, :3]
-
-
-def _scratch(local: threading.local, size: int, dtype) -> np.ndarray:
-    """A (≥ size,) scratch array of ``dtype`` owned by the calling thread, reused across its
-    chunks (a fresh multi-megabyte temporary per chunk costs as much as the work done in it)."""
-    work = getattr(local, "work", None)
-    if work is None or work.dtype != dtype or work.size < size:
-        work = local.work = np.empty(size, dtype=dtype)
-    return work
 
 
 def _negated_magnitude_keys(c: np.ndarray) -> np.ndarray:
@@ -266,8 +256,6 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
     direction_records = (_records(np.tile(dirs32, (max(1, chunks[0].stop - chunks[0].start), 1)))
                          if visibility and chunks else None)
 
-    scratch = threading.local()  # per precompute thread
-
     def chunk(sl: slice):
         cos = cosines(nrm32[sl], dirs_t)  # (c, M·S²)
         visible = cos > 0
@@ -296,9 +284,7 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         if ss > 1:  # texel integrals (solid angle folded in), accumulated in float64
             t = t.sum(axis=-1, dtype=np.float64)
         # float32 Haar: the values are stored at float32 or less (S > 1 sums stay float64).
-        # In place: t is this chunk's own contiguous array.
-        c = haar.forward_in_place(t.reshape(len(cos), 6, n, n),
-                                  work=_scratch(scratch, t.size, t.dtype)).reshape(len(cos), m)
+        c = haar.forward(t.reshape(len(cos), 6, n, n), dtype=t.dtype).reshape(len(cos), m)
         rows, cols, vals = _entries(c, truncate(c, k), first_row=sl.start * n_lobes)
         if storage == "float16":  # rounded here, on the threads (the same values, elementwise)
             vals = as_float16(vals)

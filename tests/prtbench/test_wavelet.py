@@ -120,43 +120,6 @@ def test_haar_parseval_and_inverse(n):
                        rtol=1e-12, atol=1e-12)
 
 
-def _stepwise_haar(x: np.ndarray, dtype) -> np.ndarray:
-    """The Haar transform as first written (temporaries per step): the bits to reproduce."""
-    out = np.array(x, dtype=dtype, copy=True)
-    s = out.shape[-1]
-    while s > 1:
-        h = s // 2
-        r = out[..., :s, :s].reshape(*out.shape[:-2], h, 2, h, 2)
-        p, q = r[..., :, 0, :, 0], r[..., :, 0, :, 1]
-        t, u = r[..., :, 1, :, 0], r[..., :, 1, :, 1]
-        sum_top, sum_bottom, diff_top, diff_bottom = p + q, t + u, p - q, t - u
-        ll, hl = 0.5 * (sum_top + sum_bottom), 0.5 * (sum_top - sum_bottom)
-        lh, hh = 0.5 * (diff_top + diff_bottom), 0.5 * (diff_top - diff_bottom)
-        out[..., :h, :h], out[..., :h, h:s] = ll, lh
-        out[..., h:s, :h], out[..., h:s, h:s] = hl, hh
-        s = h
-    return out
-
-
-@pytest.mark.parametrize("dtype", [np.float32, np.float64])
-@pytest.mark.parametrize("n", [1, 2, 4, 32])
-def test_haar_in_place_is_bit_identical_to_the_stepwise_transform(n, dtype):
-    rng = np.random.default_rng(n)
-    x = (rng.normal(size=(3, 6, n, n)) * rng.lognormal(size=(3, 1, 1, 1))).astype(dtype)
-    x[x < -0.5] = 0  # exact zeros, as below a surface's horizon
-    x[0, 0] *= 8 * np.finfo(dtype).tiny  # subnormal steps: halving is not exact there
-    expected = _stepwise_haar(x, dtype)
-    assert haar.forward(x, dtype=dtype).tobytes() == expected.tobytes()
-    work = np.full(x.size + 5, np.nan, dtype=dtype)  # stale scratch, larger than needed
-    y = x.copy()
-    assert haar.forward_in_place(y, work=work) is y
-    assert y.tobytes() == expected.tobytes()
-    with pytest.raises(InvalidInputError):
-        haar.forward_in_place(np.zeros((2, 4, 2), dtype=dtype))  # not square
-    with pytest.raises(InvalidInputError):
-        haar.forward_in_place(x.copy(), work=work[:x.size - 1])
-
-
 def test_haar_basis_functions():
     n = 8
     eye = np.eye(n * n).reshape(n * n, n, n)
