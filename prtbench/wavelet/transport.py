@@ -157,15 +157,21 @@ def truncate(c: np.ndarray, k: int) -> np.ndarray:
     return keep
 
 
-def _entries(c: np.ndarray, keep: np.ndarray, *, first_row: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(rows int32, cols int32, values) of the kept entries of ``c`` (P, M), row by row."""
+def _entries(c: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kept entries of ``c`` (P, M), row by row, as compressed sparse rows.
+
+    Returns
+    -------
+    counts : ndarray, shape (P,), int64
+        Entries of each row.
+    cols : ndarray, shape (nnz,), int32
+    values : ndarray, shape (nnz,), ``c``'s dtype
+    """
     counts = np.count_nonzero(keep, axis=1)
     flat = np.flatnonzero(keep)
-    rows = np.repeat(np.arange(first_row, first_row + len(c), dtype=np.int32), counts)
     cols = flat.astype(np.int32)
     cols -= np.repeat(np.arange(0, len(c) * c.shape[1], c.shape[1], dtype=np.int32), counts)
-    return rows, cols, c.reshape(-1)[flat]
+    return counts, cols, c.reshape(-1).take(flat)
 
 
 def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.ndarray, *,
@@ -285,24 +291,23 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
             t = t.sum(axis=-1, dtype=np.float64)
         # float32 Haar: the values are stored at float32 or less (S > 1 sums stay float64).
         c = haar.forward(t.reshape(len(cos), 6, n, n), dtype=t.dtype).reshape(len(cos), m)
-        rows, cols, vals = _entries(c, truncate(c, k), first_row=sl.start * n_lobes)
+        counts, cols, vals = _entries(c, truncate(c, k))
         if storage == "float16":  # rounded here, on the threads (the same values, elementwise)
             vals = as_float16(vals)
-        return rows, cols, vals, traced, seconds
+        return counts, cols, vals, traced, seconds
 
     parts, stats = [], {"rays": 0, "candidate_rays": int(len(p) * per_point), "trace_s": 0.0}
     with tqdm(total=len(p), desc=f"wavelet transport {scene.name}", unit="pt", file=sys.stderr,
               disable=not progress, dynamic_ncols=True) as bar:
-        for (rows, cols, vals, traced, seconds), sl in zip(map_chunks(chunk, chunks), chunks):
-            parts.append((rows, cols, vals))
+        for (counts, cols, vals, traced, seconds), sl in zip(map_chunks(chunk, chunks), chunks):
+            parts.append((counts, cols, vals))
             stats["rays"] += traced
             stats["trace_s"] += seconds
             bar.update(sl.stop - sl.start)
-    rows, cols, vals = (np.concatenate([q[i] for q in parts]) if parts else np.zeros(0, dt)
-                        for i, dt in enumerate((np.int32, np.int32, np.float32)))
-    transport = SparseTransport.from_entries(rows, cols, vals, n_points=len(p) * n_lobes,
-                                             n_coeffs=m,
-                                             storage=storage)
+    # Chunks come in point order: their rows, concatenated, are the transport's rows.
+    counts, cols, vals = (np.concatenate([q[i] for q in parts]) if parts else np.zeros(0, dt)
+                          for i, dt in enumerate((np.int64, np.int32, np.float32)))
+    transport = SparseTransport.from_rows(counts, cols, vals, n_coeffs=m, storage=storage)
     return transport, stats
 
 

@@ -196,3 +196,10 @@ def test_sparse_build_matches_a_sort_by_coefficient_then_point(storage):
             np.testing.assert_array_equal(built.values, q)
         else:
             assert built.values.tobytes() == values.astype(storage).tobytes()
+        # Point by point (the transport's own chunks), any order within a point: the same build.
+        shuffled = np.lexsort((rng.random(len(rows)), rows))
+        from_rows = SparseTransport.from_rows(np.bincount(rows, minlength=p), cols[shuffled],
+                                              dense[rows, cols][shuffled], n_coeffs=m,
+                                              storage=storage)
+        for a, b in zip(from_rows.arrays().values(), built.arrays().values()):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
