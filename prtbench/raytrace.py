@@ -99,6 +99,15 @@ def _as_rays(origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, n
     return o, d
 
 
+def _float32_rows(a: np.ndarray) -> np.ndarray:
+    """(N, 3) rays as embree reads them: ``a`` itself when float32 with each row's three
+    values adjacent, at any row stride of at least 12 bytes (e.g. a view of padded (N, 4)
+    records; embreex reads strided buffers), else a contiguous float32 copy."""
+    if a.dtype == np.float32 and a.strides[1] == 4 and a.strides[0] >= 12:
+        return a
+    return np.ascontiguousarray(a, dtype=np.float32)
+
+
 def _ray_chunks(n: int) -> tuple[list[slice], int]:
     """(slices, threads) for a batch of ``n`` rays: one slice per embree call.
 
@@ -216,8 +225,7 @@ class Tracer:
         scalar_far = None if per_ray else float(min(float(tfar), fmax))
 
         def trace(sl: slice) -> None:
-            oc = np.ascontiguousarray(o[sl], dtype=np.float32)
-            dc = np.ascontiguousarray(d[sl], dtype=np.float32)
+            oc, dc = _float32_rows(o[sl]), _float32_rows(d[sl])
             # embreex may write into a tfar array it is given: always pass a fresh copy.
             dist = (np.minimum(tfar[sl], fmax).astype(np.float32) if per_ray else scalar_far)
             out[sl] = self._scene.run(oc, dc, dists=dist, query="OCCLUDED") != -1
@@ -248,8 +256,7 @@ class Tracer:
             return Hits(t, face, u, v)
 
         def trace(sl: slice) -> None:
-            oc = np.ascontiguousarray(o[sl], dtype=np.float32)
-            dc = np.ascontiguousarray(d[sl], dtype=np.float32)
+            oc, dc = _float32_rows(o[sl]), _float32_rows(d[sl])
             res = self._scene.run(oc, dc, output=1)
             prim = res["primID"]
             hit = prim >= 0

@@ -124,30 +124,56 @@ class SparseTransport:
         if points.dtype.kind not in "iu" or coeffs.dtype.kind not in "iu":
             raise InvalidInputError("sparse transport entries need integer point and "
                                     "coefficient indices")
-        if values.dtype.kind != "f":
-            values = values.astype(np.float64)
-        # By coefficient, then point. Entries are first ordered by point (the transport's
-        # chunks already deliver that order); then scipy's CSR -> CSC conversion, a counting
-        # sort in C that keeps the point order within each coefficient, permutes their
-        # positions (~2× faster than a stable argsort and the gathers after it).
-        from scipy.sparse import csr_matrix
-
         if len(points) > 1 and np.any(points[1:] < points[:-1]):
             by_point = np.argsort(points, kind="stable")
             points, coeffs, values = points[by_point], coeffs[by_point], values[by_point]
-        per_point = np.bincount(points, minlength=n_points)
+        return cls.from_rows(np.bincount(points, minlength=n_points), coeffs, values,
+                             n_coeffs=n_coeffs, storage=storage)
+
+    @classmethod
+    def from_rows(cls, counts: np.ndarray, coeffs: np.ndarray, values: np.ndarray, *,
+                  n_coeffs: int, storage: str) -> "SparseTransport":
+        """Build from entries listed point by point (compressed sparse rows, no duplicates).
+
+        Parameters
+        ----------
+        counts : ndarray, shape (P,), int
+            Entries of each point; point p's are ``coeffs``/``values`` of the p-th run.
+        coeffs : ndarray, shape (nnz,), int
+            Coefficient of each entry, in any order within a point's run.
+        values : ndarray, shape (nnz,), float
+        n_coeffs : int
+        storage : {"float32", "float16", "int8"}
+        """
+        if storage not in STORAGE_DTYPES:
+            raise InvalidInputError(f"storage '{storage}'; accepted: {', '.join(STORAGE_DTYPES)}")
+        counts, coeffs, values = np.asarray(counts), np.asarray(coeffs), np.asarray(values)
+        if coeffs.dtype.kind not in "iu":
+            raise InvalidInputError("sparse transport entries need integer coefficient indices")
+        if values.dtype.kind != "f":
+            values = values.astype(np.float64)
+        n_points = len(counts)
+        if int(counts.sum()) != len(coeffs) or len(coeffs) != len(values):
+            raise InvalidInputError(f"{int(counts.sum())} entries counted, {len(coeffs)} "
+                                    f"coefficients and {len(values)} values; accepted: equal")
+        # By coefficient, then point: scipy's CSR -> CSC conversion, a counting sort in C that
+        # keeps the point order within each coefficient, permutes the entries' positions
+        # (~2× faster than a stable argsort and the gathers after it).
+        from scipy.sparse import csr_matrix
+
         point_ptr = np.zeros(n_points + 1, dtype=np.int64)
-        np.cumsum(per_point, out=point_ptr[1:])
-        positions = np.arange(len(points), dtype=np.int32 if len(points) < 1 << 31 else np.int64)
+        np.cumsum(counts, out=point_ptr[1:])
+        positions = np.arange(len(coeffs), dtype=np.int32 if len(coeffs) < 1 << 31 else np.int64)
         by_coeff = csr_matrix((positions, coeffs, point_ptr), shape=(n_points, n_coeffs)).tocsc()
         order = by_coeff.data
         scale = None
         if storage == "int8":
             peak = np.zeros(n_points)
-            filled = np.flatnonzero(per_point)
+            filled = np.flatnonzero(counts)
             if len(filled):  # the largest |value| of each point, from its run of entries
                 peak[filled] = np.maximum.reduceat(np.abs(values), point_ptr[filled])
             scale = (np.where(peak > 0, peak, 1.0) / 127.0).astype(np.float32)
+            points = np.repeat(np.arange(n_points), counts)
             stored = np.clip(np.rint(values / scale[points]), -127, 127).astype(np.int8)
         else:
             stored = as_float16(values) if storage == "float16" else values.astype(storage)

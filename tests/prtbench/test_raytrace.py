@@ -172,6 +172,25 @@ def test_first_hit_barycentrics_distance_and_tfar():
     assert (rays_away.face == -1).all() and np.isinf(rays_away.t).all()
 
 
+def test_rays_in_padded_records_trace_like_contiguous_ones():
+    """float32 rays viewed out of (N, 4) records go to embree uncopied, with the same answers."""
+    ball = uv_sphere(radius=1.0, segments=24)
+    tracer = Tracer(ball.positions, ball.faces)
+    rng = np.random.default_rng(5)
+    origins = rng.uniform(-3, 3, size=(400, 3)).astype(np.float32)
+    dirs = rng.normal(size=(400, 3)).astype(np.float32)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    padded_o, padded_d = (np.full((400, 4), np.nan, np.float32) for _ in range(2))
+    padded_o[:, :3], padded_d[:, :3] = origins, dirs
+    blocked = tracer.occluded(origins, dirs)
+    assert 0 < blocked.sum() < len(blocked)
+    np.testing.assert_array_equal(tracer.occluded(padded_o[:, :3], padded_d[:, :3]), blocked)
+    hits = tracer.first_hit(origins, dirs)
+    padded_hits = tracer.first_hit(padded_o[:, :3], padded_d[:, :3])
+    for name in ("t", "face", "u", "v"):
+        np.testing.assert_array_equal(getattr(padded_hits, name), getattr(hits, name))
+
+
 def test_from_scene_merges_objects_and_remembers_their_faces():
     ground = SceneObject("ground", grid_plane(4.0, 2), Material())
     ball = SceneObject("ball", uv_sphere(radius=0.5, segments=16, center=(0, 1, 0)), Material())

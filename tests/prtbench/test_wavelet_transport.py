@@ -134,6 +134,10 @@ def test_truncate_keeps_what_partitioning_every_row_kept_even_with_ties():
         kept = truncate(c, kk)
         np.testing.assert_array_equal(kept, _old_truncation(c, kk))
         assert np.all(kept.sum(axis=1) == np.minimum(kk, (c != 0).sum(axis=1)))
+        # float64 rows (cut on the values, not on integer keys), and every row over k.
+        np.testing.assert_array_equal(truncate(c.astype(np.float64), kk), kept)
+        np.testing.assert_array_equal(truncate(c[10:], kk), _old_truncation(c[10:], kk))
+    assert ((c[10:] != 0).sum(axis=1) > k).all()
 
 
 def test_truncated_transport_is_the_partition_of_the_full_one():
@@ -192,3 +196,10 @@ def test_sparse_build_matches_a_sort_by_coefficient_then_point(storage):
             np.testing.assert_array_equal(built.values, q)
         else:
             assert built.values.tobytes() == values.astype(storage).tobytes()
+        # Point by point (the transport's own chunks), any order within a point: the same build.
+        shuffled = np.lexsort((rng.random(len(rows)), rows))
+        from_rows = SparseTransport.from_rows(np.bincount(rows, minlength=p), cols[shuffled],
+                                              dense[rows, cols][shuffled], n_coeffs=m,
+                                              storage=storage)
+        for a, b in zip(from_rows.arrays().values(), built.arrays().values()):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
