@@ -138,7 +138,7 @@ PROFILE_OVERRIDES = {
               "vertex_features": 16, "train_lights": ("sky", "purple"),
               "heldout_lights": ("sun",), "light_rotations": 2, "train_views": 4,
               "lights_per_view": 1, "train_width": 32, "train_height": 24, "train_spp": 8,
-              "train_terms": 32, "light_terms": 16, "batch_pixels": 256, "steps": 40,
+              "train_terms": 32, "light_terms": 16, "batch_pixels": 256, "steps": 80,
               "direct_spp": 32},
     "quick": {"cubemap": 16, "log2_table": 16, "hidden": 64, "train_views": 48,
               "train_terms": 128, "batch_pixels": 1024, "steps": 1500, "direct_spp": 256},
