@@ -38,7 +38,10 @@ from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline  # no
 from prtbench.scene import get_scene  # noqa: E402
 from test_neural_wavelet import COMPARISON  # noqa: E402
 
-W, H, SPP = 64, 48, 256
+import os  # noqa: E402
+
+#: The test's evaluation size and reference samples (NW_EVAL_SPP overrides the latter).
+W, H, SPP = 64, 48, int(os.environ.get("NW_EVAL_SPP", 256))
 
 
 def psnr_over(renderer, scene, lights) -> float:
