@@ -273,8 +273,9 @@ COMPARISON = {
     "(scripts/nw_holdout_experiment.py): the linear loss fitted bright pixels only (fixed: the "
     "paper's mu-law loss); then the gap was light generalisation (14 lights; 32 rotations: "
     "+1.0 dB), target noise (a 32-spp Mitsuba indirect itself scores only 26.3 dB held-out; "
-    "128 then 512 spp with twice the views: +1.35 dB) and under-training (600 -> 2000 steps: +1.7 dB). Training lights at "
-    "held-out views reach 30.7 dB, held-out lights 28.45: the rest is more distinct lights, "
+    "128 then 512 spp with twice the views: +1.35 dB) and under-training (600 -> 2000 steps: "
+    "+1.7 dB). Training lights at held-out views reach 30.7 dB, held-out lights 28.45: the "
+    "rest is more distinct lights, "
     "cleaner targets and steps than ~15 min on 2 cores allow"))
 def test_hashgrid_beats_vertex_features_on_held_out_lights():
     from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline
