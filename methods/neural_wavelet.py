@@ -114,6 +114,16 @@ class NeuralWaveletConfig:
     steps: int = knob(4000, "Training steps.", low=1, high=10_000_000)
     learning_rate: float = knob(1e-2, "Adam learning rate, cosine-annealed to 1 %.", low=1e-6,
                                 high=1.0)
+    loss: str = knob("mulaw", "Training loss: mulaw (the paper's §4: L2 of the μ-law "
+                     "tonemapped prediction and target, sign-extended to negatives, so that bright "
+                     "regions do not dominate) or l2 (L2 on linear radiance).",
+                     choices=("mulaw", "l2"))
+    mulaw_mu: float = knob(5000.0, "μ of the μ-law tonemap log(1 + μ|x|)/log(1 + μ) (Kalantari "
+                           "and Ramamoorthi 2017's value; the paper's is lost in our copy).",
+                           low=1e-3, high=1e7)
+    mulaw_white: float = knob(0.99, "Quantile of the training targets that the μ-law maps to "
+                              "1 (x is divided by it; the tonemap expects values in [0, 1]).",
+                              low=0.5, high=1.0)
     adaptive_sampling: float = knob(0.5, "Fraction of each batch drawn by view variance and "
                                     "glossiness (0: uniform).", low=0.0, high=1.0)
     device: str = knob("auto", "Torch device: auto (CUDA when available), cpu or cuda.",
@@ -128,7 +138,7 @@ PROFILE_OVERRIDES = {
               "vertex_features": 16, "train_lights": ("sky", "purple"),
               "heldout_lights": ("sun",), "light_rotations": 2, "train_views": 4,
               "lights_per_view": 1, "train_width": 32, "train_height": 24, "train_spp": 8,
-              "train_terms": 32, "light_terms": 16, "batch_pixels": 256, "steps": 40,
+              "train_terms": 32, "light_terms": 16, "batch_pixels": 256, "steps": 80,
               "direct_spp": 32},
     "quick": {"cubemap": 16, "log2_table": 16, "hidden": 64, "train_views": 48,
               "train_terms": 128, "batch_pixels": 1024, "steps": 1500, "direct_spp": 256},

@@ -1,0 +1,148 @@
+"""Diagnose neural-wavelet's held-out-light PSNR on the must-hold's reduced case (issue #19).
+
+Usage::
+
+    PYTHONPATH=. python scripts/nw_holdout_experiment.py '{"steps": 600}' [variants] [--no-sh]
+
+The first argument is a JSON dict of overrides on the test's ``COMPARISON`` config; ``variants``
+is a comma list (default ``hashgrid,vertex``). Prints, on the test's scene, views, size and
+256-spp indirect reference: the black image and the SH baseline (sloan-matrix 5 bands,
+bounces 1 minus 0) on the held-out lights, then per variant the indirect masked PSNR on
+
+* ``heldout``: the held-out lights (the must-hold's number),
+* ``heldout_all``: the same with every wavelet term (k = 6N²) instead of ``light_terms``,
+* ``trainlight``: training lights at rotation 0 (``train_lights[:2]``) on the same
+  held-out trajectory views (separates light generalisation from view generalisation),
+* ``trainfit``: PSNR of the model's prediction on its own training rows (linear, peak = the
+  largest target), with the render-time k-term selection; ``trainfit_disp`` the same on
+  display values (the metric's space); ``*_black`` the same for a zero prediction,
+
+and the training loss first -> last.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, "tests/methods")
+
+import methods.neural_wavelet  # noqa: E402,F401
+import prtbench  # noqa: E402
+from prtbench.lights import get_light  # noqa: E402
+from prtbench.method import METHODS, load_or_precompute  # noqa: E402
+from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline  # noqa: E402
+from prtbench.scene import get_scene  # noqa: E402
+from test_neural_wavelet import COMPARISON  # noqa: E402
+
+import os  # noqa: E402
+
+#: The test's evaluation size and reference samples (NW_EVAL_SPP overrides the latter).
+W, H, SPP = 64, 48, int(os.environ.get("NW_EVAL_SPP", 256))
+
+
+def psnr_over(renderer, scene, lights) -> float:
+    return float(np.mean([m["psnr_masked"] for light in lights
+                          for m in indirect_metrics(renderer, scene, light,
+                                                    scene.trajectory.views, width=W, height=H,
+                                                    spp=SPP)]))
+
+
+def train_fit(artifact, config) -> float:
+    """PSNR (peak = max target) of the trained model on its training rows, render-time k."""
+    import torch
+
+    from prtbench.neural_wavelet.data import build_dataset
+    from prtbench.neural_wavelet.model import NeuralWaveletModel
+    from prtbench.neural_wavelet.train import _tensors
+    from prtbench.wavelet.selection import select_terms
+
+    scene = _scene()
+    data = build_dataset(scene, config, progress=False)
+    model = NeuralWaveletModel.from_arrays(artifact.arrays)
+    inputs = _tensors(data, "cpu")
+    from prtbench import imageio
+
+    err, peak, count = 0.0, float(np.max(data["target"])), 0
+    derr, dzero = 0.0, 0.0
+    zero = float(np.mean(data["target"].astype(np.float64) ** 2))
+    with torch.no_grad():
+        for l in range(len(data["coeffs"])):
+            rows = np.flatnonzero(data["light"] == l)
+            if not len(rows):
+                continue
+            coeffs = data["coeffs"][l]
+            terms = select_terms(coeffs, config.light_terms, rule="magnitude")
+            lj = torch.as_tensor(coeffs[terms])
+            for start in range(0, len(rows), 4096):
+                idx = torch.as_tensor(rows[start:start + 4096])
+                pred = model.radiance(inputs.rows(idx), terms, lj).numpy()
+                want = data["target"][idx.numpy()]
+                err += float(((pred - want) ** 2).sum())
+                count += pred.size
+                dw = imageio.display(want, exposure=scene.exposure)
+                derr += float(((imageio.display(pred, exposure=scene.exposure) - dw) ** 2).sum())
+                dzero += float((dw ** 2).sum())
+    return (float(10 * np.log10(peak ** 2 / (err / count))),
+            float(10 * np.log10(peak ** 2 / zero)),
+            float(10 * np.log10(count / derr)), float(10 * np.log10(count / dzero)))
+
+
+def _scene():
+    return get_scene("sphere-over-plane", variant="glossy", sphere_segments=24,
+                     plane_subdivisions=8).with_views(3)
+
+
+def main() -> None:
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    extra = json.loads(args[0]) if args else {}
+    variants = args[1].split(",") if len(args) > 1 else ["hashgrid", "vertex"]
+    print(f"prtbench from {prtbench.__file__}; overrides {extra}", flush=True)
+    cls = METHODS.get("neural-wavelet")
+    scene = _scene()
+    t0 = time.time()
+    heldout = [get_light(n) for n in {**COMPARISON, **extra}["heldout_lights"]]
+
+    class Black:
+        def indirect(self, view, light):
+            return np.zeros((H, W, 3), np.float32)
+
+    print(f"black heldout {psnr_over(Black(), scene, heldout):.2f}", flush=True)
+    if "--no-sh" not in sys.argv:
+        sh = sh_baseline(scene, width=W, height=H, bounces=1, sh_bands=5)
+        try:
+            print(f"sh heldout {psnr_over(sh, scene, heldout):.2f}", flush=True)
+        finally:
+            sh.release()
+    for features in variants:
+        config = cls.make_config({**COMPARISON, **extra, "features": features}, profile="quick")
+        artifact = load_or_precompute(cls, scene, config, progress=False)
+        m = artifact.meta
+        train_lights = [get_light(n) for n in config.train_lights[:2]]
+        out = {}
+        renderer = cls.renderer(scene, artifact, config, width=W, height=H)
+        try:
+            out["heldout"] = psnr_over(renderer, scene, heldout)
+            out["trainlight"] = psnr_over(renderer, scene, train_lights)
+        finally:
+            renderer.release()
+        full = cls.make_config({**COMPARISON, **extra, "features": features,
+                                "light_terms": 6 * config.cubemap ** 2}, profile="quick")
+        renderer = cls.renderer(scene, artifact, full, width=W, height=H)
+        try:
+            out["heldout_all"] = psnr_over(renderer, scene, heldout)
+        finally:
+            renderer.release()
+        (out["trainfit"], out["trainfit_black"], out["trainfit_disp"],
+         out["trainfit_disp_black"]) = train_fit(artifact, config)
+        print(f"{features}: " + " ".join(f"{k} {v:.2f}" for k, v in out.items())
+              + f" | {m['data_images']} images {m['data_rows']} rows, train {m['train_s']:.0f} s "
+              f"{m['pixels_per_s']:.0f} px/s, loss {m['loss_first']:.4g} -> {m['loss_last']:.4g}"
+              f" | wall {time.time() - t0:.0f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
