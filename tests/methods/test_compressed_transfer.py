@@ -8,20 +8,19 @@ one-line errors before any work; compressed smoke runs beat the trivial images.
 
 from __future__ import annotations
 
-import re
 
 import numpy as np
 import pytest
 
 import methods.vertex_glossy  # noqa: F401  (registers sloan-matrix)
 from prtbench.cache import content_key
-from prtbench.cli import main
 from prtbench.compress import knobs
 from prtbench.config import to_dict
 from prtbench.errors import PrtbenchError
 from prtbench.lights import get_light
 from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
 from prtbench.scene import get_scene
+from .refusal import assert_run_refused  # noqa: E402
 
 BASE = {"sh_bands": 3, "rays_per_point": 32}
 
@@ -134,16 +133,9 @@ def test_errors_shrink_as_the_form_grows():
 ])
 def test_bad_requests_are_one_line_errors_before_any_work(method, sets, match, tmp_path,
                                                           capsys):
-    args = ["run", "--method", method, "--scene", "plants", "--profile", "smoke",
-            "--variant", "glossy" if method == "sloan-matrix" else "diffuse",
-            "--out", str(tmp_path / "out"), "--results", str(tmp_path / "r.sqlite")]
-    for item in sets:
-        args += ["--set", item]
-    assert main(args) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("prtbench: error: ") and "\n" not in err and "Traceback" not in err
-    assert re.search(match, err), err
-    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
+    assert_run_refused(["--method", method, "--scene", "plants", "--profile", "smoke",
+                        "--variant", "glossy" if method == "sloan-matrix" else "diffuse"],
+                       sets, match=match, tmp_path=tmp_path, capsys=capsys)
 
 
 def test_compress_on_a_method_without_stored_transfer_is_refused():

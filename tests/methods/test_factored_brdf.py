@@ -4,7 +4,6 @@ with J, convergence towards the path reference, memory, bad input."""
 
 from __future__ import annotations
 
-import re
 
 import numpy as np
 import pytest
@@ -12,11 +11,11 @@ import pytest
 import methods.factored_brdf as factored  # noqa: F401  (registers factored-brdf)
 import methods.vertex  # noqa: F401
 import methods.vertex_glossy  # noqa: F401
-from prtbench.cli import main
 from prtbench.errors import InvalidInputError, PrtbenchError
 from prtbench.lights import get_light
 from prtbench.method import METHODS, load_or_precompute
 from prtbench.scene import get_scene
+from .refusal import assert_run_refused  # noqa: E402
 
 
 def _scene(variant: str, **params):
@@ -116,16 +115,9 @@ def test_extreme_exponents_stay_finite_and_a_constant_lobe_is_one_term():
     (["brdf_resolution=1"], r"brdf_resolution"),
 ])
 def test_bad_requests_are_one_line_errors_before_any_work(sets, match, tmp_path, capsys):
-    args = ["run", "--method", "factored-brdf", "--scene", "plants", "--profile", "smoke",
-            "--variant", "diffuse", "--out", str(tmp_path / "out"),
-            "--results", str(tmp_path / "r.sqlite")]
-    for item in sets:
-        args += ["--set", item]
-    assert main(args) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("prtbench: error: ") and "\n" not in err and "Traceback" not in err
-    assert re.search(match, err), err
-    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
+    assert_run_refused(["--method", "factored-brdf", "--scene", "plants", "--profile", "smoke",
+                        "--variant", "diffuse"], sets, match=match, tmp_path=tmp_path,
+                       capsys=capsys)
 
 
 def test_textured_materials_are_refused_and_unknown_knobs_too():

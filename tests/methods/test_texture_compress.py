@@ -9,7 +9,6 @@ the trivial images.
 
 from __future__ import annotations
 
-import re
 
 import numpy as np
 import pytest
@@ -17,12 +16,12 @@ import pytest
 import methods.texture  # noqa: F401  (registers texture-tp, texture-tpfl)
 from methods.texture.compressed import reconstructed_texture
 from prtbench.cache import content_key
-from prtbench.cli import main
 from prtbench.compress import knobs
 from prtbench.config import to_dict
 from prtbench.lights import get_light
 from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
 from prtbench.scene import get_scene
+from .refusal import assert_run_refused  # noqa: E402
 
 BASE = {"sh_bands": 3, "rays_per_point": 16, "texture_resolution": 64, "padding": 1}
 
@@ -115,15 +114,8 @@ def test_default_keeps_the_uncompressed_cache_key(scene):
     (["clusters=8"], r"clusters=8 has no effect with compress='none'"),
 ])
 def test_bad_requests_are_one_line_errors_before_any_work(sets, match, tmp_path, capsys):
-    args = ["run", "--method", "texture-tp", "--scene", "plants", "--profile", "smoke",
-            "--out", str(tmp_path / "out"), "--results", str(tmp_path / "r.sqlite")]
-    for item in sets:
-        args += ["--set", item]
-    assert main(args) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("prtbench: error: ") and "\n" not in err and "Traceback" not in err
-    assert re.search(match, err), err
-    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
+    assert_run_refused(["--method", "texture-tp", "--scene", "plants", "--profile", "smoke"],
+                       sets, match=match, tmp_path=tmp_path, capsys=capsys)
 
 
 def test_compressed_ops_count_the_taps_and_the_projection():

@@ -10,7 +10,6 @@ nothing; the compressed regression case beats the trivial images.
 
 from __future__ import annotations
 
-import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -27,6 +26,7 @@ from prtbench.lights import get_light
 from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
 from prtbench.scene import get_scene
 from prtbench.wavelet.sparse import SparseTransport
+from .refusal import assert_run_refused  # noqa: E402
 
 METHOD = "wavelet-vertex"
 #: d = 6·8² = 384 coefficients per vertex: small enough for full-rank PCA in a test.
@@ -261,17 +261,10 @@ def test_bad_requests_are_one_line_errors_that_cache_nothing(sets, match, tmp_pa
                                                               capsys):
     cache = tmp_path / "cache"
     monkeypatch.setenv("PRTBENCH_CACHE", str(cache))
-    args = ["run", "--method", METHOD, "--scene", "sphere-over-plane", "--scene-param",
-            "sphere_segments=32", "--scene-param", "plane_size=4.0", "--profile", "smoke",
-            "--out", str(tmp_path / "out"), "--results", str(tmp_path / "r.sqlite")]
-    for item in sets:
-        args += ["--set", item]
-    assert main(args) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("prtbench: error: ") and "\n" not in err and "Traceback" not in err
-    assert re.search(match, err), err
-    assert not (tmp_path / "r.sqlite").exists() and not (tmp_path / "out").exists()
-    assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*"))
+    assert_run_refused(["--method", METHOD, "--scene", "sphere-over-plane", "--scene-param",
+                        "sphere_segments=32", "--scene-param", "plane_size=4.0", "--profile",
+                        "smoke"], sets, match=match, tmp_path=tmp_path, capsys=capsys,
+                       cache=cache)
 
 
 def test_a_fit_over_the_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
