@@ -176,7 +176,9 @@ class SparseTransport:
             points = np.repeat(np.arange(n_points), counts)
             stored = np.clip(np.rint(values / scale[points]), -127, 127).astype(np.int8)
         else:
-            stored = as_float16(values) if storage == "float16" else values.astype(storage)
+            # Values already of the stored type (rounded on the precompute threads) are not copied.
+            stored = (as_float16(values) if storage == "float16"
+                      else values).astype(storage, copy=False)
         return cls(by_coeff.indptr.astype(np.int64), by_coeff.indices.astype(row_dtype(n_points)),
                    stored[order], scale, int(n_points))
 

@@ -104,6 +104,20 @@ def _negated_magnitude_keys(c: np.ndarray) -> np.ndarray:
     return keys
 
 
+def row_counts(mask: np.ndarray) -> np.ndarray:
+    """(P,) int64 true entries of each row of a (P, M) bool ``mask``.
+
+    ``np.count_nonzero(mask, axis=1)``, ~3× faster on C-contiguous rows of a multiple of 8
+    bytes: each 8-byte word of 0/1 bytes times 0x0101…01 holds its byte sum in its top byte.
+    """
+    if mask.ndim != 2 or mask.shape[1] % 8 or not mask.flags.c_contiguous:
+        return np.count_nonzero(mask, axis=1).astype(np.int64)
+    words = mask.view(np.uint64)
+    words = words * np.uint64(0x0101_0101_0101_0101)
+    words >>= np.uint64(56)
+    return words.sum(axis=1, dtype=np.int64)
+
+
 def truncate(c: np.ndarray, k: int) -> np.ndarray:
     """Entries kept of each row: its nonzero coefficients among its ``k`` largest in magnitude.
 
@@ -129,7 +143,7 @@ def truncate(c: np.ndarray, k: int) -> np.ndarray:
     keep = c != 0
     if k >= c.shape[1]:
         return keep
-    over = np.count_nonzero(keep, axis=1) > k  # of a bool array: no temporary
+    over = row_counts(keep) > k
     if not over.any():
         return keep
     every = bool(over.all())  # the usual case: no row gathered, none scattered back
@@ -143,7 +157,7 @@ def truncate(c: np.ndarray, k: int) -> np.ndarray:
     cut = np.partition(magnitude, k - 1, axis=1)[:, k - 1:k]  # −(k-th largest |c|) < 0
     # More than k nonzeros: the k-th largest |c| is > 0, so every chosen entry is nonzero.
     chosen = magnitude <= cut
-    tied = np.flatnonzero(np.count_nonzero(chosen, axis=1) != k)
+    tied = np.flatnonzero(row_counts(chosen) != k)
     if len(tied):  # argpartition's own pick among the equal ones, on the values themselves
         negated = np.abs(rows[tied])
         np.negative(negated, out=negated)
@@ -167,7 +181,7 @@ def _entries(c: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     cols : ndarray, shape (nnz,), int32
     values : ndarray, shape (nnz,), ``c``'s dtype
     """
-    counts = np.count_nonzero(keep, axis=1)
+    counts = row_counts(keep)
     flat = np.flatnonzero(keep)
     cols = flat.astype(np.int32)
     cols -= np.repeat(np.arange(0, len(c) * c.shape[1], c.shape[1], dtype=np.int32), counts)
@@ -268,9 +282,10 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         traced, seconds = 0, 0.0
         if visibility:
             front = visible.reshape(-1)
-            counts = np.count_nonzero(visible, axis=1)
+            counts = row_counts(visible)
             ray_origins = np.repeat(origin_records[sl], counts)
-            ray_dirs = direction_records[:len(front)][front]
+            # compress, not a boolean index: the same records, ~3× faster on 16-byte items
+            ray_dirs = direction_records[:len(front)].compress(front)
             traced = len(ray_dirs)
             start = time.perf_counter()
             blocked = tracer.occluded(_vectors(ray_origins), _vectors(ray_dirs))
