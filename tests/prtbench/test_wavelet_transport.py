@@ -11,7 +11,7 @@ from prtbench.errors import InvalidInputError
 from prtbench.scene import get_scene
 from prtbench.wavelet import cubemap, haar, sparse
 from prtbench.wavelet.sparse import SparseTransport
-from prtbench.wavelet.transport import compute_wavelet_transport, keep_count, truncate
+from prtbench.wavelet.transport import compute_wavelet_transport, keep_count, row_counts, truncate
 
 
 def _texel_transport(transport: SparseTransport, n: int) -> np.ndarray:
@@ -203,3 +203,16 @@ def test_sparse_build_matches_a_sort_by_coefficient_then_point(storage):
                                               storage=storage)
         for a, b in zip(from_rows.arrays().values(), built.arrays().values()):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("shape", [(7, 6 * 4 * 4), (3, 6 * 32 * 32), (5, 13), (0, 24)])
+def test_row_counts_equal_count_nonzero_on_rows_of_any_length(shape):
+    """The word-sum count is exact, full rows and empty rows included (13: the fallback)."""
+    rng = np.random.default_rng(3)
+    mask = rng.random(shape) < 0.4
+    if shape[0]:
+        mask[0] = True  # a full row: every byte of every word is 1
+        mask[-1] = False
+    expected = np.count_nonzero(mask, axis=1)
+    assert np.array_equal(row_counts(mask), expected)
+    assert np.array_equal(row_counts(mask[:, ::-1]), expected)  # not C-contiguous: fallback
