@@ -45,7 +45,8 @@ class Cell:
 
 
 class Reproduction:
-    """Base class: subclasses set the attributes and implement :meth:`cells` and :meth:`format`."""
+    """Base class: subclasses set the attributes and implement :meth:`format`, and :meth:`cells`
+    and/or :meth:`measure` for what it measures."""
 
     name: str = ""
     paper: str = ""
@@ -54,7 +55,9 @@ class Reproduction:
     notes: Sequence[str] = ()
 
     def cells(self, profile: str) -> list[Cell]:
-        raise NotImplementedError
+        """The runner cells this table sweeps. Default none: a table that measures everything
+        itself (its own harness in :meth:`measure`) needs no cells."""
+        return []
 
     def measure(self, profile: str, *, results_path: Path | None = None) -> list[str]:
         """Measurements the generic runner cannot make (e.g. per-pass timings).

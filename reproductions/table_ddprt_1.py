@@ -82,10 +82,6 @@ class DdprtTable1(Reproduction):
 
     # -- measurement ---------------------------------------------------------------------------
 
-    def cells(self, profile: str) -> list:
-        """No runner cells: :meth:`measure` runs this table's own timing harness."""
-        return []
-
     def measure(self, profile: str, *, results_path=None) -> list[str]:
         """Time every (scene, n) and append the rows to the results store; returns the run id."""
         import methods.data_driven  # noqa: F401 - registers the method

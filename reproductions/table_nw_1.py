@@ -84,10 +84,6 @@ class TableNw1(Reproduction):
             "baseline's transfer and bounce precompute.",
         )
 
-    def cells(self, profile: str) -> list:
-        """No runner cells: :meth:`measure` trains once and evaluates both view sets."""
-        return []
-
     def measure(self, profile: str, *, results_path=None) -> list[str]:
         st = nw.setup(profile)
         nw.check_sloan(st, bounces=1)  # before an hour of training, not after it

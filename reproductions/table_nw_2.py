@@ -55,9 +55,6 @@ class TableNw2(Reproduction):
             "paper's from its printed ms. Absolute times are llvmpipe + CPU torch, not a GPU.",
         )
 
-    def cells(self, profile: str) -> list:
-        return []
-
     def measure(self, profile: str, *, results_path=None) -> list[str]:
         from prtbench.lights import get_light
 

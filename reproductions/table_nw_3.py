@@ -16,8 +16,6 @@ Entry point: ``"nw-3" = "reproductions.table_nw_3:TABLE"``.
 
 from __future__ import annotations
 
-from prtbench.reproduction import Reproduction
-
 from . import table_nw_common as nw
 
 VALUES = {"smoke": (10, 12, 14), "quick": (14, 16, 18), "paper": (18, 19, 20)}
@@ -30,7 +28,8 @@ PAPER = (
 )
 
 
-class TableNw3(Reproduction):
+class TableNw3(nw.AblationTable):
+    knob, values, tag = "log2_table", VALUES, "nw3"
     name = "nw-3"
     paper = ("Raghavan, Wang, Ramamoorthi et al. 2023, Neural Free-Viewpoint Relighting for "
              "Glossy Indirect Illumination, Table 3 (hash-table size, Four Animals)")
@@ -49,18 +48,9 @@ class TableNw3(Reproduction):
             "Paper rows: denoised, its T inferred from the printed sizes (lost in our copy).",
         )
 
-    def cells(self, profile: str) -> list:
-        return []
-
-    def measure(self, profile: str, *, results_path=None) -> list[str]:
-        st = nw.setup(profile)
-        writer = nw.RowWriter(profile, "nw3")
-        nw.measure_ablation(writer, st, "log2_table", VALUES[profile], tag="nw3")
-        return writer.store(results_path)
-
     def format(self, frame, *, profile: str):
         header, rows = nw.ablation_rows(
-            frame, "log2_table", VALUES[profile],
+            frame, self.knob, self.values[profile],
             extra=(("hash-table bytes", lambda part, _: int(part["metric_bytes_field"].iloc[0])),
                    ("paper size", lambda part, _: "—"), ("paper PSNR full / ind.",
                                                           lambda part, _: "—"),

@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import math
 
-from prtbench.reproduction import Reproduction
-
 from . import table_nw_common as nw
 
 VALUES = {"smoke": (-1, 2), "quick": (-1, 2, 4, 6), "paper": (-1, 2, 4, 6, 8)}
@@ -37,7 +35,8 @@ def encoding_name(degree: int) -> str:
     return "none (ωr not an input)" if degree < 0 else f"SH degree {degree} ({(degree + 1) ** 2})"
 
 
-class TableNw4(Reproduction):
+class TableNw4(nw.AblationTable):
+    knob, values, tag = "reflect_degree", VALUES, "nw4"
     name = "nw-4"
     paper = ("Raghavan, Wang, Ramamoorthi et al. 2023, Neural Free-Viewpoint Relighting for "
              "Glossy Indirect Illumination, Table 4 (encodings of ωr, Kitchen)")
@@ -51,18 +50,9 @@ class TableNw4(Reproduction):
         "table says which degree these rows favour.",
     )
 
-    def cells(self, profile: str) -> list:
-        return []
-
-    def measure(self, profile: str, *, results_path=None) -> list[str]:
-        st = nw.setup(profile)
-        writer = nw.RowWriter(profile, "nw4")
-        nw.measure_ablation(writer, st, "reflect_degree", VALUES[profile], tag="nw4")
-        return writer.store(results_path)
-
     def format(self, frame, *, profile: str):
         header, rows = nw.ablation_rows(
-            frame, "reflect_degree", VALUES[profile],
+            frame, self.knob, self.values[profile],
             extra=(("encoding", lambda part, d: encoding_name(d)),
                    ("paper PSNR full / ind.", lambda part, d: "—"),
                    ("paper SSIM full / ind.", lambda part, d: "—")))

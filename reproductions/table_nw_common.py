@@ -38,9 +38,12 @@ import math
 import sys
 import time
 import uuid
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
+
+from prtbench.reproduction import Reproduction
 
 #: Per profile: scene, builder parameters, views per view set, held-out lights used, SH
 #: baseline knobs. ``smoke`` runs in seconds on a procedural scene (no assets); ``quick`` is
@@ -379,6 +382,24 @@ def select(frame, **label):
     """Rows of ``frame`` whose label has every given key/value."""
     keep = [all(lab.get(k) == v for k, v in label.items()) for lab in labels(frame)]
     return frame[keep] if len(frame) else frame
+
+
+class AblationTable(Reproduction):
+    """Base of the neural-wavelet ablation tables (table-nw-3, table-nw-4): one model per value
+    of :attr:`knob` in :attr:`values` ``[profile]``, the rest the profile's config, trained on
+    the same data and evaluated on the far views (:func:`measure_ablation`); one run id,
+    tagged :attr:`tag`. Subclasses set those and write :meth:`format` with
+    :func:`ablation_rows`."""
+
+    knob: str = ""
+    values: Mapping[str, tuple] = {}
+    tag: str = ""
+
+    def measure(self, profile: str, *, results_path=None) -> list[str]:
+        st = setup(profile)
+        writer = RowWriter(profile, self.tag)
+        measure_ablation(writer, st, self.knob, self.values[profile], tag=self.tag)
+        return writer.store(results_path)
 
 
 def measure_ablation(writer: RowWriter, st: Setup, knob: str, values, *, tag: str,
