@@ -212,7 +212,28 @@ def load(name: str, *, run_ids: Sequence[str] | None = None,
                         **json.loads(data)})
     columns = None if records else ["run_id", "profile", "git_sha", "renderer", "device",
                                     "timestamp"]
-    return pd.DataFrame.from_records(records, columns=columns)
+    frame = pd.DataFrame.from_records(records, columns=columns)
+    _keep_integers(frame, records)
+    return frame
+
+
+def _keep_integers(frame, records: list[dict]) -> None:
+    """Integer keys stored in only some rows read back as integers, not floats.
+
+    pandas makes a column float64 when some rows lack its key (NaN for them), so a count such
+    as a figure's ``pixels`` would print as 320.0. Such columns become object columns of
+    Python ints, NaN where a row has no value: numeric reductions and ``x != x`` NaN tests
+    work as before. Columns every row fills are int64 already.
+    """
+    import math
+
+    import pandas as pd
+
+    for column in frame.columns[frame.dtypes == "float64"]:
+        present = [r[column] for r in records if r.get(column) is not None]
+        if present and all(type(v) is int for v in present):
+            frame[column] = pd.Series([r[column] if r.get(column) is not None else math.nan
+                                       for r in records], index=frame.index, dtype=object)
 
 
 def load_images(run_id: str, *, results_path: str | Path | None = None) -> dict[str, Any]:

@@ -275,9 +275,6 @@ class FigureNw6(Figure):
         table = stored.table(TABLE)
         recs = _panels.records(table)
         facts = next(r for r in recs if r["panel"] == "facts")
-        # Counts come back from the store's numeric columns as floats: print them as counts.
-        facts = {k: int(v) if isinstance(v, float) and v.is_integer() else v
-                 for k, v in facts.items()}
         plt = _plots._pyplot()
         fig, axes = plt.subplots(1, 3, figsize=(15.0, 4.6))
         titles = {"light": ("Lighting: energy in the top-k coefficients", "energy fraction"),

@@ -169,3 +169,19 @@ def test_table_rebuilt_from_the_store_is_byte_identical_with_its_leak_column(tmp
     assert 0.0 < float(rows[0]["leak MAE (room)"]) < 1.0
     assert float(rows[0]["leak MAE (room)"]) == pytest.approx(float(leak["leak_mae"].iloc[0]),
                                                               rel=1e-3)
+
+
+def test_integers_stored_in_some_rows_read_back_as_integers(tmp_path):
+    """A count kept in one row of a table (a figure's facts row) is not read as 320.0."""
+    store = tmp_path / "r.sqlite"
+    measurements.record("mixed", [{"panel": "curve", "k": 8, "value": 0.5},
+                                  {"panel": "facts", "k": 64, "value": None, "pixels": 320,
+                                   "spp": 2.0}],
+                        results_path=store, run_id="run-mixed", profile="smoke")
+    frame = measurements.load("mixed", results_path=store)
+    assert [type(v) for v in frame["pixels"]] == [float, int]  # NaN where absent, int where set
+    assert frame["pixels"].iloc[1] == 320 and frame["pixels"].iloc[0] != frame["pixels"].iloc[0]
+    assert frame["k"].dtype == "int64"  # every row has it: an integer column already
+    assert frame["spp"].dtype == "float64"  # stored as a float: stays one
+    assert frame["value"].iloc[1] != frame["value"].iloc[1]  # null float: NaN, as before
+    assert f"{frame['pixels'].iloc[1]}" == "320"
