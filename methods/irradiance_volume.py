@@ -165,7 +165,7 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     y_local = eval_sh(local, bands) * (4.0 * np.pi / m)
     corners = tracer.positions.astype(np.float64)[tracer.faces]
     face_normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    rotate = ShRotation(bands)
+    rotate = ShRotation.for_bands(bands)
     visibility = np.zeros((len(p), bands * bands))
     backface = np.zeros(len(p))
     step = max(1, _RAYS_PER_CHUNK // m)

@@ -31,6 +31,7 @@ import math
 import sys
 import threading
 from collections.abc import Iterator
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -190,6 +191,13 @@ class ShRotation:
     R = Rz(a)·Ry(b)·Rz(c) and Ry(b) = Rx(−90°)·Rz(b)·Rx(90°), D(R) is three cheap z-rotations
     (cos/sin mixing of ±m pairs) and two constant band-diagonal matrices computed once by exact
     quadrature, so rotating costs O(n³) per point with no per-point SH evaluation.
+
+    The work runs coefficient-major, on (n², N) arrays (:meth:`rotate_columns`): a band's
+    ±m rows are then contiguous runs of N values, so each of the per-band numpy operations
+    streams memory instead of striding across it (measured 1.3–1.7× faster than point-major
+    for 256–4096 points). The band matrices are applied as ``(cᵀ @ Bᵀ)ᵀ``, the same BLAS
+    product as point-major ``c @ Bᵀ``, so the results are bit for bit those of the point-major
+    layout this replaced. Use :meth:`for_bands` to share the constant matrices between calls.
     """
 
     def __init__(self, bands: int):
@@ -201,19 +209,24 @@ class ShRotation:
         self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
         self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
 
+    @staticmethod
+    def for_bands(bands: int) -> "ShRotation":
+        """The rotation of ``bands`` bands, built once per process (its matrices are constants)."""
+        return _rotation_for_bands(int(bands))
+
     def _z(self, c: np.ndarray, angle: np.ndarray) -> None:
         if self.bands < 2:
             return
         # e^{imγ} for m = 1 … n−1 by repeated products: two trig calls per point, not n².
-        powers = np.cumprod(np.repeat(np.exp(1j * angle)[:, None], self.bands - 1, axis=1), axis=1)
-        cos, sin = powers.real, powers.imag
+        powers = np.cumprod(np.repeat(np.exp(1j * angle)[None, :], self.bands - 1, axis=0), axis=0)
+        cos, sin = np.ascontiguousarray(powers.real), np.ascontiguousarray(powers.imag)
         for l in range(1, self.bands):
-            # Band l's m = 1 … l are columns l²+l+1 … l²+2l and their partners −m run from
+            # Band l's m = 1 … l are rows l²+l+1 … l²+2l and their partners −m run from
             # l²+l−1 down to l²: slices, not gathers (per-point cost of the rotation).
             centre = l * l + l
-            pos = c[:, centre + 1:centre + l + 1]
-            neg = c[:, centre - 1:(centre - l - 1 if centre - l - 1 >= 0 else None):-1]
-            cl, sl = cos[:, :l], sin[:, :l]
+            pos = c[centre + 1:centre + l + 1]
+            neg = c[centre - 1:(centre - l - 1 if centre - l - 1 >= 0 else None):-1]
+            cl, sl = cos[:l], sin[:l]
             new_pos = pos * cl - neg * sl
             neg[...] = pos * sl + neg * cl
             pos[...] = new_pos
@@ -221,10 +234,22 @@ class ShRotation:
     def _x(self, c: np.ndarray, blocks: list[np.ndarray]) -> None:
         for l, block in enumerate(blocks):
             if l:
-                c[:, l * l:(l + 1) ** 2] = c[:, l * l:(l + 1) ** 2] @ block.T
+                rows = c[l * l:(l + 1) ** 2]
+                rows[...] = (rows.T @ block.T).T
 
-    def __call__(self, coeffs: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
-        """D(R_p)·c_p for coefficients (N, n²) and rotations (N, 3, 3); returns a new array."""
+    def rotate_columns(self, coeffs_t: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
+        """D(R_p)·c_p in place for coefficients stored coefficient-major.
+
+        Parameters
+        ----------
+        coeffs_t : ndarray, shape (n², N), float64, C-contiguous
+            Column p holds point p's coefficients; overwritten with the rotated ones.
+        world_from_local : ndarray, shape (N, 3, 3)
+
+        Returns
+        -------
+        ndarray, shape (n², N): ``coeffs_t`` itself.
+        """
         r = world_from_local
         b = np.arccos(np.clip(r[:, 2, 2], -1.0, 1.0))
         sin_b = np.hypot(r[:, 0, 2], r[:, 1, 2])
@@ -233,24 +258,40 @@ class ShRotation:
                      np.where(r[:, 2, 2] > 0, np.arctan2(r[:, 1, 0], r[:, 0, 0]),
                               np.arctan2(-r[:, 1, 0], r[:, 1, 1])))
         c_ang = np.where(regular, np.arctan2(r[:, 2, 1], -r[:, 2, 0]), 0.0)
-        out = np.array(coeffs, dtype=np.float64, copy=True)
-        self._z(out, c_ang)
-        self._x(out, self.x_plus)
-        self._z(out, b)
-        self._x(out, self.x_minus)
-        self._z(out, a)
-        return out
+        self._z(coeffs_t, c_ang)
+        self._x(coeffs_t, self.x_plus)
+        self._z(coeffs_t, b)
+        self._x(coeffs_t, self.x_minus)
+        self._z(coeffs_t, a)
+        return coeffs_t
+
+    def __call__(self, coeffs: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
+        """D(R_p)·c_p for coefficients (N, n²) and rotations (N, 3, 3); returns a new array."""
+        out = np.ascontiguousarray(np.asarray(coeffs, dtype=np.float64).T)
+        if out is coeffs or np.shares_memory(out, coeffs):
+            out = out.copy()
+        return np.ascontiguousarray(self.rotate_columns(out, world_from_local).T)
+
+
+@lru_cache(maxsize=16)
+def _rotation_for_bands(bands: int) -> ShRotation:
+    rotation = ShRotation(bands)
+    for block in rotation.x_minus:
+        block.flags.writeable = False
+    return rotation
 
 
 def _project(visible: np.ndarray, local_sh: np.ndarray, pattern: RayPattern, sl: slice,
              scratch: Scratch, *, scale: float) -> np.ndarray:
-    """``scale`` · Σ_j Y_i(ω_j) V_j per point in its local frame.
+    """``scale`` · Σ_j Y_i(ω_j) V_j per point in its local frame, coefficient-major.
 
     One (rows × M) @ (M × n²) product per pattern, over the points using it. When the chunk
     starts at pattern 0 and holds whole rounds of patterns (every chunk but a ragged last
     one), the products are one stacked matmul call: numpy hands BLAS the same per-pattern
     products, so the bits are those of the loop, with 3 numpy calls instead of 4 per pattern
-    (fewer calls also means fewer GIL hand-overs between the tracing threads).
+    (fewer calls also means fewer GIL hand-overs between the tracing threads). The scaling
+    writes the products straight into the (n², n) layout :meth:`ShRotation.rotate_columns`
+    works in (no separate transpose copy).
 
     Parameters
     ----------
@@ -261,24 +302,26 @@ def _project(visible: np.ndarray, local_sh: np.ndarray, pattern: RayPattern, sl:
 
     Returns
     -------
-    ndarray, shape (n, n²), float64 (a new array)
+    ndarray, shape (n², n), float64, C-contiguous (a new array)
     """
     n, m = visible.shape
     p, n2 = len(local_sh), local_sh.shape[-1]
+    local_t = np.empty((n2, n))
     if n % p == 0 and sl.start % p == 0:
         rows = n // p
         weights = scratch.get("weights", (p, rows, m), np.float64)
         np.copyto(weights, visible.reshape(rows, p, m).transpose(1, 0, 2))  # [k] = rows k::p
         products = np.matmul(weights, local_sh, out=scratch.get("products", (p, rows, n2),
                                                                 np.float64))
-        return np.multiply(products.transpose(1, 0, 2), scale).reshape(n, n2)
-    local = np.empty((n, n2))
+        # point r·p + k is products[k, r]: (n², rows, p) is local_t's own memory order.
+        np.multiply(products.transpose(2, 1, 0), scale, out=local_t.reshape(n2, rows, p))
+        return local_t
     for k, rows in pattern.groups(sl):
         v = visible[rows]
         weights = scratch.get("weights", v.shape, np.float64)
         np.copyto(weights, v)
-        local[rows] = weights @ local_sh[k]
-    return local * scale
+        np.multiply((weights @ local_sh[k]).T, scale, out=local_t[:, rows])
+    return local_t
 
 
 def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *, bands: int,
@@ -303,7 +346,7 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
                 # One evaluation for all patterns (eval_sh is per direction: same values).
                 local = pattern.local
                 y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
-                tables.extend([ShRotation(bands), y])
+                tables.extend([ShRotation.for_bands(bands), y])
         return tables[0], tables[1]
 
     scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
@@ -337,8 +380,8 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
                 error[s:s + len(v)] = np.sqrt(var / m)
             return mean, error
         rotate, local_sh = sh_tables()
-        return rotate(_project(visible, local_sh, pattern, sl, scratch, scale=np.pi / m),
-                      frames.transpose(0, 2, 1)), None
+        local_t = _project(visible, local_sh, pattern, sl, scratch, scale=np.pi / m)
+        return rotate.rotate_columns(local_t, frames.transpose(0, 2, 1)).T, None
 
     # Chunks run on the precompute threads (embree and numpy's large operations release the
     # GIL); each chunk's rays depend only on its points, so any thread count gives these bits.

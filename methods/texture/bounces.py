@@ -121,7 +121,7 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
     face_set = atlas.face_texture_set
     materials = _Materials(scene, bands)
     tpfl = tpfl_matrix(light_sh, bands).reshape(n2, n2 * 3)  # H = T @ M, RGB last
-    rotate = ShRotation(bands)
+    rotate = ShRotation.for_bands(bands)
     m = int(rays_per_point)
     step = max(1, RAYS_PER_BATCH // m)
     origins_all = offset_origins(points, normals, diagonal=tracer.diagonal)

@@ -349,7 +349,7 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
 
         m = int(rays_per_point)
         pattern = tr.RayPattern(len(p), m, seed)
-        rotate = tr.ShRotation(bands)
+        rotate = tr.ShRotation.for_bands(bands)
         local_sh = [eval_sh(directions, bands) for directions in pattern.local]
         origins_all = surface_origins(surface, p, n)
         transfer = np.zeros((len(p), bands * bands))

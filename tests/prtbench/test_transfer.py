@@ -103,6 +103,35 @@ def test_sh_rotation_matches_direct_evaluation():
         np.testing.assert_allclose(got, sh.eval_sh(world_from_local @ d, bands), atol=1e-10)
 
 
+def test_coefficient_major_rotation_is_the_point_major_one_in_place():
+    """rotate_columns on (n², N) is __call__ on (N, n²), in place; both rotate each point as
+    rotating it alone does (to rounding: BLAS takes another kernel for one row)."""
+    rng = np.random.default_rng(7)
+    normals = rng.normal(size=(33, 3))
+    normals[:3] = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1e-12, 0.0, 1.0]]  # the gimbal cases
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    world_from_local = tangent_frames(normals, rng.uniform(0, 2 * np.pi, len(normals))
+                                      ).transpose(0, 2, 1)
+    for bands in (1, 2, 5, 9):
+        rotate = ShRotation.for_bands(bands)
+        coeffs = rng.normal(size=(len(normals), bands * bands))
+        before = coeffs.copy()
+        expected = np.stack([rotate(c[None], r[None])[0] for c, r in zip(coeffs, world_from_local)])
+        rotated = rotate(coeffs, world_from_local)
+        assert rotated.flags.c_contiguous
+        np.testing.assert_allclose(rotated, expected, rtol=0, atol=1e-13)
+        np.testing.assert_array_equal(coeffs, before)  # __call__ leaves its input alone
+        columns = np.ascontiguousarray(coeffs.T)
+        assert rotate.rotate_columns(columns, world_from_local) is columns
+        np.testing.assert_array_equal(columns.T, rotated)
+        # F-ordered input (its transpose is already C-contiguous) is copied, not overwritten.
+        fortran = np.asfortranarray(coeffs)
+        np.testing.assert_array_equal(rotate(fortran, world_from_local), rotated)
+        np.testing.assert_array_equal(fortran, before)
+    assert ShRotation.for_bands(5) is ShRotation.for_bands(5)
+    assert not ShRotation.for_bands(5).x_minus[2].flags.writeable
+
+
 def test_sphere_over_plane_below_the_sphere_sees_one_minus_r_over_h_squared():
     r, h = 0.5, 1.0
     scene = get_scene("sphere-over-plane", radius=r, height=h)
