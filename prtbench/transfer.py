@@ -206,6 +206,7 @@ class ShRotation:
         y = eval_sh(dirs, bands) * weights[:, None]
         # D_ij = ∫ Y_i(ω) Y_j(Rᵀω) dω, exact: the integrand has degree <= 2(n-1).
         d_minus = y.T @ eval_sh(dirs @ _rotation_x(-90.0), bands)
+        d_minus.flags.writeable = False  # constants, shared between threads by for_bands
         self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
         self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
 
@@ -267,18 +268,11 @@ class ShRotation:
 
     def __call__(self, coeffs: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
         """D(R_p)·c_p for coefficients (N, n²) and rotations (N, 3, 3); returns a new array."""
-        out = np.ascontiguousarray(np.asarray(coeffs, dtype=np.float64).T)
-        if out is coeffs or np.shares_memory(out, coeffs):
-            out = out.copy()
+        out = np.array(np.asarray(coeffs).T, dtype=np.float64, order="C")  # always a copy
         return np.ascontiguousarray(self.rotate_columns(out, world_from_local).T)
 
 
-@lru_cache(maxsize=16)
-def _rotation_for_bands(bands: int) -> ShRotation:
-    rotation = ShRotation(bands)
-    for block in rotation.x_minus:
-        block.flags.writeable = False
-    return rotation
+_rotation_for_bands = lru_cache(maxsize=16)(ShRotation)
 
 
 def _project(visible: np.ndarray, local_sh: np.ndarray, pattern: RayPattern, sl: slice,
