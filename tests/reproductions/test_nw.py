@@ -209,3 +209,39 @@ def test_figure_nw_6_smoke(store, tmp_path):
     assert np.all(mitsuba >= -1e-6)
     _, rows = _csv(tmp_path / "figure-nw-6.csv")
     assert len(rows) == int((recs["panel"].isin(["light", "transport", "rendering"])).sum())
+
+
+def test_seed_spread_is_the_mean_and_sample_std_of_each_metric():
+    from reproductions.table_nw_seeds import seed_spread
+
+    header = ["seed", "rows", "PSNR indirect", "SSIM full", "resident bytes"]
+    rows = [[0, 2, 15.0, 0.5, 10], [1, 2, 17.0, 0.7, 10], [2, 2, 19.0, float("nan"), 10]]
+    spread = seed_spread(rows, header)
+    assert set(spread) == {"PSNR indirect", "SSIM full"}  # bytes are not a metric
+    assert spread["PSNR indirect"] == pytest.approx((17.0, 2.0), abs=1e-12)
+    # NaN (a metric a row lacks) is left out, not propagated: mean 0.6, std of 0.5 and 0.7.
+    assert spread["SSIM full"] == pytest.approx((0.6, math.sqrt(0.02)), abs=1e-12)
+    assert math.isnan(seed_spread(rows[:1], header)["PSNR indirect"][1])
+
+
+@pytest.mark.slow
+def test_table_nw_seeds_smoke_prints_the_stored_spread(store, tmp_path):
+    from reproductions.table_nw_seeds import TABLE, VALUES
+
+    md, csv_path = run_table(TABLE, profile="smoke", results_path=store,
+                             reports_dir=tmp_path, progress=False)
+    header, rows = _csv(csv_path)
+    assert [int(r[0]) for r in rows] == list(VALUES["smoke"])
+    frame = _stored(store, "nwseed-")
+    col = header.index("PSNR indirect")
+    psnr = []
+    for row in rows:
+        part = nw.select(frame, seed=int(row[0]))
+        assert _close(row[col], part["metric_indirect_psnr_masked"].mean())
+        psnr.append(part["metric_indirect_psnr_masked"].mean())
+    # Different seeds are different trainings (else the table measures nothing).
+    assert len(set(frame["precompute_s"])) == len(rows)
+    text = md.read_text()
+    assert f"Indirect PSNR range over the seeds: {max(psnr) - min(psnr):.2f} dB" in text
+    mean, std = float(np.mean(psnr)), float(np.std(psnr, ddof=1))
+    assert f"PSNR indirect: {mean:.4g} ± {std:.2g}" in text
