@@ -28,8 +28,8 @@ VALUES = {"smoke": (0, 1), "quick": (0, 1, 2), "paper": (0, 1, 2)}
 def seed_spread(rows, header) -> dict[str, tuple[float, float]]:
     """Metric column -> (mean, sample std) over the seed rows (NaN std for one row)."""
     out = {}
-    for column in header[2:]:
-        if not column.startswith(("PSNR", "SSIM", "FLIP")):
+    for column in header:
+        if column.split()[0].lower() not in nw.ABLATION_METRICS:  # ablation_rows' metric columns
             continue
         values = np.array([float(r[header.index(column)]) for r in rows], np.float64)
         values = values[np.isfinite(values)]
@@ -65,7 +65,7 @@ class TableNwSeeds(nw.AblationTable):
         lines = ["", f"Over {len(rows)} seeds ({profile} profile), mean ± sample std:", ""]
         lines += [f"- {column}: {mean:.4g} ± {std:.2g}" for column, (mean, std) in spread.items()]
         column = header.index("PSNR indirect")
-        psnr = [float(r[column]) for r in rows]
+        psnr = [float(r[column]) for r in rows if math.isfinite(float(r[column]))]  # as spread
         lines += ["", f"Indirect PSNR range over the seeds: {max(psnr) - min(psnr):.2f} dB "
                       f"({min(psnr):.2f} to {max(psnr):.2f}); a knob's rows in table-nw-3 or "
                       "table-nw-4 that differ by less are not told apart by one training "
