@@ -139,7 +139,8 @@ def _decode_image(blob: bytes):
 
 def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | Path | None,
            run_id: str, profile: str, git_sha: str | None = None, renderer: str = "",
-           device: str = "", images: Mapping[str, Any] | None = None) -> None:
+           device: str = "", images: Mapping[str, Any] | None = None,
+           timestamp: str | None = None) -> None:
     """Append ``rows`` to measurement table ``name`` (and ``images`` to the run) in one transaction.
 
     Parameters
@@ -160,6 +161,9 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
         GL renderer string and machine, where the rows are timings or GL renders.
     images : dict of str to ndarray, optional
         Panels stored losslessly under ``run_id`` (keys unique within the run).
+    timestamp : str, optional
+        When the rows were measured (ISO 8601, UTC); default now. Only rows carried over
+        from an earlier record (:mod:`prtbench.stability.importing`) pass their own.
     """
     from .results import PROFILES
     from .results import git_sha as current_sha
@@ -171,7 +175,7 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
     payloads = [json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in rows]
     blobs = [(key, _encode_image(value)) for key, value in (images or {}).items()]
     sha = git_sha if git_sha is not None else current_sha()
-    stamp = _utc_now()
+    stamp = timestamp or _utc_now()
 
     def insert(conn: sqlite3.Connection) -> None:
         conn.executemany(

@@ -36,6 +36,15 @@ def run_command(args: argparse.Namespace) -> int:
     outputs.check_folder("--reports", Path(args.reports))
     if args.json:
         outputs.check_file("--json", Path(args.json))
+    if args.import_csv:
+        if args.method or args.case:
+            from ..errors import InvalidInputError
+
+            raise InvalidInputError("--import-csv with --method/--case; accepted: --import-csv "
+                                    "alone or with --from-store (an import measures nothing)")
+        _import(args, results, table_name(label))
+        if not args.from_store:
+            return 0
     if args.from_store:
         from .matrix import stored_rows
 
@@ -76,6 +85,20 @@ def expected_cases(methods, *, profile: str, scene_file=None, scene_params=None
                 [c.name for c in method_cases(METHODS.get(m), profile=profile,
                                               scene_file=scene_file, scene_params=scene_params)])
             for m in methods}
+
+
+def _import(args: argparse.Namespace, results: Path | None, table: str) -> None:
+    """``--import-csv``: the CSV's rows into the store, checked in full before any write."""
+    from .. import outputs
+    from ..results import default_path
+    from .importing import import_csv
+
+    outputs.check_results_store("--results", results or default_path())
+    summary = import_csv(Path(args.import_csv), results_path=results, table=table)
+    print(f"imported {summary.complete_rows + summary.partial_rows} rows of {summary.source} "
+          f"into {results or default_path()} (table {table}: {summary.complete_rows} in complete "
+          f"run {summary.complete_run}, {summary.partial_rows} of interrupted runs in "
+          f"{summary.partial_run})", file=sys.stderr)
 
 
 def _scene(args: argparse.Namespace):
@@ -146,6 +169,10 @@ def add_parser(sub) -> None:
     p.add_argument("--quiet", action="store_true", help="no per-case progress lines")
     p.add_argument("--from-store", action="store_true",
                    help="rewrite the report from the newest stored row of each case (no measuring)")
+    p.add_argument("--import-csv", default=None, metavar="CSV",
+                   help="store the rows of a written table-stability CSV (marked imported, each "
+                        "with its own revision and time), e.g. when the store it came from is "
+                        "gone; with --from-store, then rewrite the report")
     p.add_argument("--partial", action="store_true",
                    help="with --from-store: runs interrupted before their end count too (marked)")
     p.add_argument("--note", action="append", metavar="TEXT",

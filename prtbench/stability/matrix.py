@@ -180,7 +180,8 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
     """The newest stored row of each (method, case) for ``profile`` (SH core rows last).
 
     Matrix runs over different methods or cases (e.g. run side by side) are merged; each row
-    keeps the run it came from (its moderate case is that run's). Only complete runs count
+    keeps the run it came from (its moderate case is that run's). Newest is the row's own
+    measurement time (rows imported from a CSV keep theirs), then the newest run. Only complete runs count
     unless ``partial``: then an interrupted run (rows stored, no report run) counts too, and
     its rows are marked ``partial_run = True``.
 
@@ -206,10 +207,14 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
                             f"'{profile}' in results store '{path}'; measure it first with: "
                             f"prtbench stability --profile {profile} --results {path}")
     chosen: dict[tuple[str, str], dict[str, Any]] = {}
-    for run in runs:  # newest first: the first row of a (method, case) wins
+    for run in runs:  # newest run first; a row measured later (its timestamp) replaces one
         for row in load_rows(run, results_path=results_path, table=table):
-            chosen.setdefault((row["method"], row["case"]),
-                              {**row, "partial_run": run not in complete})
+            key = (row["method"], row["case"])
+            # Imported rows keep their own time and join the store after later runs, so the
+            # run order alone would let an old row win; on a tie the newer run's row stays.
+            if key not in chosen or str(row.get("timestamp") or "") > str(
+                    chosen[key].get("timestamp") or ""):
+                chosen[key] = {**row, "partial_run": run not in complete}
     methods = sorted({m for m, _ in chosen}, key=lambda m: (m == CORE, m))
     out = []
     for m in methods:

@@ -29,7 +29,7 @@ CSV_COLUMNS = (
     "underflow", "precompute_s", "precompute_cached", "memory_bytes", "artifact_bytes",
     "peak_rss_bytes", "frame_ms", "wall_s", "status", "run_id", "git_sha", "profile",
     "renderer", "device", "ringing", "rel_l2", "advice", "note", "load_1m", "timestamp",
-    "partial_run")
+    "partial_run", "imported_from")
 
 
 def _num(value: Any, fmt: str = ".2f") -> str:
@@ -156,6 +156,25 @@ def _load_text(rows: Sequence[Mapping[str, Any]]) -> str:
             f"{min(loads):.2f}-{max(loads):.2f} over the {len(loads)} rows that recorded it.")
 
 
+def _marks(row: Mapping[str, Any]) -> str:
+    """† a row of an interrupted run, ‡ a row imported from an earlier report's CSV."""
+    return (" †" if row.get("partial_run") else "") + (" ‡" if row.get("imported_from") else "")
+
+
+def _imported_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Where rows came from a CSV (``stability --import-csv``) rather than a run into this
+    store: how many, from which file, and what they keep."""
+    sources = Counter(str(r["imported_from"]) for r in rows if r.get("imported_from"))
+    if not sources:
+        return []
+    files = ", ".join(f"`{source}` ({count})" for source, count in sources.items())
+    return ["", f"Imported: {sum(sources.values())} of {len(rows)} rows were carried over from "
+            f"an earlier report's CSV ({files}; ‡ in the tables), because the results store "
+            "they were measured into was not kept. They are the earlier runs' own numbers, "
+            "each with its revision, device, load and time; rows without ‡ were measured "
+            "into this store."]
+
+
 def format_markdown(rows: Sequence[Mapping[str, Any]], *,
                     expected: Mapping[str, Sequence[str]] | None = None,
                     notes: Sequence[str] = ()) -> str:
@@ -197,6 +216,7 @@ def format_markdown(rows: Sequence[Mapping[str, Any]], *,
                   "case's newest measurement; `partial_run` in the CSV, † in the tables): "
                   + ", ".join(f"{m} ({_count(rows, m, partial=True)} of {_count(rows, m)} rows)"
                               for m in partial)]
+    lines += _imported_lines(rows)
     lines += coverage_lines(rows, expected, notes)
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
@@ -218,7 +238,7 @@ def format_markdown(rows: Sequence[Mapping[str, Any]], *,
                     f"{_num(r.get('artifact_peak'), '.3g')} / {_num(r.get('storage_max'), '.3g')} "
                     f"({r.get('storage_dtype')})")
             lines.append(
-                f"| {r['case']}{' †' if r.get('partial_run') else ''} | **{r['outcome']}** | "
+                f"| {r['case']}{_marks(r)} | **{r['outcome']}** | "
                 f"{_num(r.get('psnr_masked'))} | "
                 f"{_num(r.get('flip_masked'), '.3f')} | {_num(r.get('psnr_vs_moderate'))} | "
                 f"{peak} | "
