@@ -25,6 +25,7 @@ from pathlib import Path
 from ..errors import InvalidInputError
 from . import data as data_mod
 from . import plot as plot_mod
+from . import stability as stability_mod
 from .images import STOPS, ImageMaker, stop_name
 
 #: Marks a folder as a site this command wrote (so rebuilding may replace it).
@@ -172,6 +173,12 @@ def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: boo
     for item in site.reproduced:
         pages.append(_reproduction_page(item, site, root, env, maker_cache=cache))
         reproduced.append(item)
+    for page in site.stability:
+        html = env.get_template("stability.html").render(
+            page=page, site=site, title=f"stability at the extremes ({page.profile})",
+            provenance=data_mod.provenance([], cache=cache, measured=stability_mod.measured(page)))
+        (root / page.file).write_text(html, encoding="utf-8")
+        pages.append(page.file)
     html = env.get_template("index.html").render(
         site=site, overview=_overview(site), reproduced=reproduced,
         provenance=data_mod.provenance(site.rows, cache=cache),

@@ -140,6 +140,8 @@ class SiteData:
     reproduced: list[Reproduced]
     missing_reproductions: list[str]
     rows: list
+    #: ``prtbench stability``'s stored matrices, one page per profile (:mod:`.stability`).
+    stability: list = field(default_factory=list)
 
 
 def _knobs(method: str, config: dict, profile: str) -> str:
@@ -268,8 +270,11 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
         raise PrtbenchError(f"results store '{results_path}' has no ok rows against the path "
                             f"reference; {FILL_COMMAND}")
     reproduced, missing = _reproduced(results_path)
+    from .stability import collect as stability_pages
+
     return SiteData(results_path=results_path, pages=pages, reproduced=reproduced,
-                    missing_reproductions=missing, rows=rows)
+                    missing_reproductions=missing, rows=rows,
+                    stability=stability_pages(results_path))
 
 
 def mitsuba_variants(rows: list, *, cache: Path | None = None) -> list[str]:

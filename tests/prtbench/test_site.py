@@ -20,7 +20,7 @@ from prtbench.results import ResultsStore
 from prtbench.site.build import MARKER, build, fmt
 from prtbench.tradeoff.pareto import collect_points, noise_ceiling_db
 
-from .site_store import CELLS, make_store
+from .site_store import CELLS, STABILITY_ROWS, add_stability, make_store
 
 _VOID = {"img", "input", "br", "meta", "link", "hr", "source", "wbr"}
 
@@ -338,3 +338,37 @@ def test_rows_without_cached_images_are_shown_without_images(store, tmp_path):
     assert "<img" not in page and "No cached images" in page
     assert "(no cached images)" in page and 'id="compare-data"' not in page
     assert not list((tmp_path / "empty-cache").rglob("*.png"))  # nothing made from nothing
+
+
+def test_stability_page_colours_each_outcome_and_prints_the_stored_numbers(store, tmp_path):
+    import re
+    import shutil
+
+    copy = tmp_path / "store.sqlite"
+    shutil.copyfile(store, copy)
+    add_stability(copy)
+    out = tmp_path / "site"
+    build(results_path=copy, out=out, echo=False)
+    page = out / "stability-smoke.html"
+    text = page.read_text()
+    assert 'href="stability-smoke.html"' in (out / "index.html").read_text()
+    outcomes = re.findall(r'<tr data-case="([^"]+)">\s*<td>[^<]*</td>\s*'
+                          r'<td class="outcome outcome-(\w+)" data-outcome="(\w+)">', text)
+    # In the catalogue's order (moderate first), each cell classed by its stored outcome.
+    assert outcomes[0][0] == "moderate" and len(outcomes) == len(STABILITY_ROWS)
+    assert sorted(outcomes) == sorted((r["case"], r["outcome"], r["outcome"])
+                                      for r in STABILITY_ROWS)
+    stored = {r["case"]: r for r in STABILITY_ROWS}
+    numbers = [n for n in _parse(page).numbers if "data-case" in n["row"]]
+    assert numbers
+    for number in numbers:
+        row = stored[number["row"]["data-case"]]
+        key = number["field"]
+        expected = (row["peak_rss_bytes"] / 2**20 if key == "peak_rss_mib" and
+                    "peak_rss_bytes" in row else row.get(key))
+        _check(number, expected)
+    assert "light=black ‡" in text and "use 3-5 bands" in text
+    css = (out / "static" / "site.css").read_text()
+    colours = {o: re.search(rf"\.outcome-{o} {{ background: (#[0-9a-f]+)", css).group(1)
+               for o in ("ok", "degraded", "refused", "failed")}
+    assert len(set(colours.values())) == 4, colours

@@ -25,7 +25,7 @@ from prtbench.site.build import MARKER, build
 from prtbench.site.data import slug
 
 from . import chromium
-from .site_store import make_store
+from .site_store import add_stability, make_store
 
 pytestmark = [pytest.mark.browser,
               pytest.mark.skipif(chromium.executable() is None,
@@ -99,6 +99,7 @@ def browser():
 def smoke_site(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("browser-site")
     store = make_store(folder, table=False)
+    add_stability(store)
     build(results_path=store, out=folder / "site", echo=False)
     return folder / "site"
 
@@ -123,6 +124,16 @@ def _check_site(site: Path, browser, *, screenshots: Path | None) -> None:
             assert target.is_file(), (page.name, href)
             if url.fragment and target.suffix == ".html":
                 assert f'id="{url.fragment}"' in target.read_text(), (page.name, href)
+        if page.name.startswith("stability-"):
+            # Each outcome class has its own colour, the same on every cell of that class.
+            colours = browser.evaluate("""[...document.querySelectorAll('td.outcome')].map(
+                (td) => [td.dataset.outcome, getComputedStyle(td).backgroundColor])""")
+            by_outcome = defaultdict(set)
+            for outcome, colour in colours:
+                by_outcome[outcome].add(colour)
+            assert colours and all(len(c) == 1 for c in by_outcome.values()), by_outcome
+            shown = [next(iter(c)) for c in by_outcome.values()]
+            assert len(set(shown)) == len(shown) and "rgba(0, 0, 0, 0)" not in shown, by_outcome
         if page in scene_pages:
             stem = page.stem.split("-")
             points = browser.evaluate("document.querySelectorAll('.plot .scatterlayer path.point').length")
