@@ -139,8 +139,7 @@ def _decode_image(blob: bytes):
 
 def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | Path | None,
            run_id: str, profile: str, git_sha: str | None = None, renderer: str = "",
-           device: str = "", images: Mapping[str, Any] | None = None,
-           timestamp: str | None = None) -> None:
+           device: str = "", images: Mapping[str, Any] | None = None) -> None:
     """Append ``rows`` to measurement table ``name`` (and ``images`` to the run) in one transaction.
 
     Parameters
@@ -161,9 +160,6 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
         GL renderer string and machine, where the rows are timings or GL renders.
     images : dict of str to ndarray, optional
         Panels stored losslessly under ``run_id`` (keys unique within the run).
-    timestamp : str, optional
-        When the rows were measured (ISO 8601, UTC); default now. Only rows carried over
-        from an earlier record (:mod:`prtbench.stability.importing`) pass their own.
     """
     from .results import PROFILES
     from .results import git_sha as current_sha
@@ -175,16 +171,79 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
     payloads = [json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in rows]
     blobs = [(key, _encode_image(value)) for key, value in (images or {}).items()]
     sha = git_sha if git_sha is not None else current_sha()
-    stamp = timestamp or _utc_now()
+    stamp = _utc_now()
 
     def insert(conn: sqlite3.Connection) -> None:
-        conn.executemany(
-            "INSERT INTO measurements (name, run_id, row, profile, git_sha, renderer, device, "
-            "timestamp, data) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            [(name, run_id, i, profile, sha, renderer, device, stamp, p)
-             for i, p in enumerate(payloads)])
+        _insert_rows(conn, name, run_id, payloads, profile=profile, git_sha=sha,
+                     renderer=renderer, device=device, timestamp=stamp)
         conn.executemany("INSERT INTO measurement_images (run_id, key, data) VALUES (?, ?, ?)",
                          [(run_id, key, blob) for key, blob in blobs])
+
+    _write(results_path, insert)
+
+
+def _insert_rows(conn: sqlite3.Connection, name: str, run_id: str, payloads: Sequence[str], *,
+                 profile: str, git_sha: str, renderer: str, device: str, timestamp: str,
+                 first: int = 0) -> None:
+    conn.executemany(
+        "INSERT INTO measurements (name, run_id, row, profile, git_sha, renderer, device, "
+        "timestamp, data) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        [(name, run_id, first + i, profile, git_sha, renderer, device, timestamp, p)
+         for i, p in enumerate(payloads)])
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Rows measured together elsewhere, with the record they came with.
+
+    Attributes
+    ----------
+    run_id, profile, git_sha, renderer, device : str
+        The run the rows join, and what they were measured with.
+    timestamp : str
+        When they were measured (the store's own format, :func:`_utc_now`).
+    rows : sequence of dict
+    """
+
+    run_id: str
+    profile: str
+    git_sha: str
+    renderer: str
+    device: str
+    timestamp: str
+    rows: Sequence[Mapping[str, Any]]
+
+
+def record_batches(name: str, batches: Sequence[Batch], *, results_path: str | Path | None,
+                   completed: Sequence[tuple[str, str]] = ()) -> None:
+    """Append ``batches`` to measurement table ``name`` and mark the report runs ``completed``
+    ((run id, profile) pairs) complete, all in one transaction: a failure stores nothing.
+
+    For rows carried over from an earlier record (:mod:`prtbench.stability.importing`): each
+    batch keeps its own revision, renderer, device and time, where :func:`record` stamps now.
+    """
+    from .results import PROFILES
+    from .results import git_sha as current_sha
+
+    for batch in batches:
+        if batch.profile not in PROFILES:
+            from .errors import UnknownNameError
+
+            raise UnknownNameError("profile", batch.profile, PROFILES)
+    encoded = [[json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in b.rows]
+               for b in batches]
+    sha, stamp = current_sha(), _utc_now()
+
+    def insert(conn: sqlite3.Connection) -> None:
+        first: dict[str, int] = {}
+        for batch, payloads in zip(batches, encoded):
+            _insert_rows(conn, name, batch.run_id, payloads, profile=batch.profile,
+                         git_sha=batch.git_sha, renderer=batch.renderer, device=batch.device,
+                         timestamp=batch.timestamp, first=first.get(batch.run_id, 0))
+            first[batch.run_id] = first.get(batch.run_id, 0) + len(payloads)
+        conn.executemany("INSERT INTO report_runs (kind, name, profile, run_id, git_sha, "
+                         "timestamp, members) VALUES ('table', ?, ?, ?, ?, ?, '{}')",
+                         [(name, profile, run_id, sha, stamp) for run_id, profile in completed])
 
     _write(results_path, insert)
 

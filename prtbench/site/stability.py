@@ -47,28 +47,42 @@ class StabilityPage:
 
     @property
     def file(self) -> str:
+        """The page's file name in the site."""
         return f"stability-{self.profile}.html"
 
     @property
     def rows(self) -> list[dict]:
+        """Every row of the page, method by method."""
         return [r for m in self.methods for r in m.rows]
 
 
 def collect(results_path: Path) -> list[StabilityPage]:
-    """A page for each profile whose stability rows the store holds (none: an empty list)."""
-    from ..errors import PrtbenchError
+    """A page for each profile whose stability rows the store holds (none: an empty list).
+
+    Parameters
+    ----------
+    results_path : Path
+        The results store (read only).
+
+    Returns
+    -------
+    list of StabilityPage
+    """
+    from ..errors import InvalidInputError, PrtbenchError
     from ..profiles import PROFILES
     from ..stability.matrix import stored_rows
     from ..stability.outcome import OUTCOMES
-    from ..stability.report import method_summary
+    from ..stability.report import IMPORTED_FROM, method_summary
 
     pages = []
     for profile in PROFILES:
         try:
             rows = stored_rows(profile=profile, results_path=results_path, partial=True)
+        except InvalidInputError:  # an unreadable store is an error, not an empty page
+            raise
         except PrtbenchError:  # no stability run of this profile
             continue
-        for r in rows:
+        for r in rows:  # the page prints MiB, as the Markdown report does
             rss = r.get("peak_rss_bytes")
             r["peak_rss_mib"] = None if rss is None else float(rss) / 2**20
         methods = []
@@ -82,7 +96,7 @@ def collect(results_path: Path) -> list[StabilityPage]:
         pages.append(StabilityPage(
             profile=profile, methods=methods, outcomes={o: counts.get(o, 0) for o in OUTCOMES},
             degraded=[r for r in rows if r["outcome"] == "degraded"],
-            imported=sum(bool(r.get("imported_from")) for r in rows),
+            imported=sum(bool(r.get(IMPORTED_FROM)) for r in rows),
             partial=sum(bool(r.get("partial_run")) for r in rows)))
     return pages
 

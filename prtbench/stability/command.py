@@ -37,11 +37,6 @@ def run_command(args: argparse.Namespace) -> int:
     if args.json:
         outputs.check_file("--json", Path(args.json))
     if args.import_csv:
-        if args.method or args.case:
-            from ..errors import InvalidInputError
-
-            raise InvalidInputError("--import-csv with --method/--case; accepted: --import-csv "
-                                    "alone or with --from-store (an import measures nothing)")
         _import(args, results, table_name(label))
         if not args.from_store:
             return 0
@@ -88,17 +83,42 @@ def expected_cases(methods, *, profile: str, scene_file=None, scene_params=None
 
 
 def _import(args: argparse.Namespace, results: Path | None, table: str) -> None:
-    """``--import-csv``: the CSV's rows into the store, checked in full before any write."""
+    """``--import-csv``: the CSV's rows into the store, everything checked before the write
+    (so that a following ``--from-store`` cannot fail on what was just stored)."""
     from .. import outputs
+    from ..errors import InvalidInputError, PrtbenchError
     from ..results import default_path
-    from .importing import import_csv
+    from .importing import import_csv, read_rows
+    from .matrix import stored_rows
 
+    measuring = [flag for flag, value in (("--method", args.method), ("--case", args.case),
+                                          ("--out", args.out), ("--timeout", args.timeout))
+                 if value]
+    reporting = [flag for flag, value in (("--json", args.json), ("--note", args.note),
+                                          ("--partial", args.partial)) if value]
+    if measuring or (reporting and not args.from_store):
+        raise InvalidInputError(f"--import-csv with {', '.join(measuring or reporting)}; "
+                                "accepted: --import-csv [--from-store [--partial] [--note TEXT] "
+                                "[--json FILE]] (an import measures nothing)")
     outputs.check_results_store("--results", results or default_path())
-    summary = import_csv(Path(args.import_csv), results_path=results, table=table)
+    if args.from_store and not args.partial:
+        rows, _ = read_rows(Path(args.import_csv))
+        if all(r.get("partial_run") for r in rows):
+            try:
+                stored_rows(profile=args.profile, results_path=results, table=table)
+            except InvalidInputError:  # an unusable store: its own message
+                raise
+            except PrtbenchError:  # no complete run: the report would have no rows
+                raise InvalidInputError(
+                    f"--import-csv {args.import_csv}: only rows of interrupted runs and no "
+                    f"complete {args.profile} run in the store; accepted: --partial") from None
+    summary = import_csv(Path(args.import_csv), results_path=results, table=table,
+                         profile=args.profile if args.from_store else None)
     print(f"imported {summary.complete_rows + summary.partial_rows} rows of {summary.source} "
-          f"into {results or default_path()} (table {table}: {summary.complete_rows} in complete "
-          f"run {summary.complete_run}, {summary.partial_rows} of interrupted runs in "
-          f"{summary.partial_run})", file=sys.stderr)
+          f"into {results or default_path()} (table {table}, profile {summary.profile}: "
+          f"{summary.complete_rows} in complete run {summary.complete_run}, "
+          f"{summary.partial_rows} of interrupted runs in {summary.partial_run}; "
+          f"{summary.skipped_rows} already stored)", file=sys.stderr)
 
 
 def _scene(args: argparse.Namespace):

@@ -19,6 +19,7 @@ from typing import Any
 
 from .cases import Case, base_case, method_cases, select
 from .outcome import classify
+from .report import IMPORTED_FROM
 
 #: Name of the measurement table (and of the report run).
 TABLE = "stability"
@@ -211,9 +212,14 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
         for row in load_rows(run, results_path=results_path, table=table):
             key = (row["method"], row["case"])
             # Imported rows keep their own time and join the store after later runs, so the
-            # run order alone would let an old row win; on a tie the newer run's row stays.
-            if key not in chosen or str(row.get("timestamp") or "") > str(
-                    chosen[key].get("timestamp") or ""):
+            # run order alone would let an old row win. Timestamps are all the store's UTC
+            # format (the importer refuses others), so they order as strings. On a tie a
+            # measured row beats an imported one, else the newer run's row stays.
+            held = chosen.get(key)
+            stamp, held_stamp = str(row.get("timestamp") or ""), str((held or {}).get(
+                "timestamp") or "")
+            if held is None or stamp > held_stamp or (
+                    stamp == held_stamp and held.get(IMPORTED_FROM) and not row.get(IMPORTED_FROM)):
                 chosen[key] = {**row, "partial_run": run not in complete}
     methods = sorted({m for m, _ in chosen}, key=lambda m: (m == CORE, m))
     out = []

@@ -20,6 +20,9 @@ from typing import Any
 
 from .outcome import FLIP_MARGIN, OUTCOMES, PSNR_MARGIN_DB
 
+#: The column (and stored key) naming the CSV a row was imported from
+#: (:mod:`prtbench.stability.importing`); empty for rows measured into the store.
+IMPORTED_FROM = "imported_from"
 #: CSV columns, in order (every number the Markdown prints is among them).
 CSV_COLUMNS = (
     "method", "case", "group", "outcome", "reason", "scene", "variant", "psnr_masked",
@@ -29,7 +32,7 @@ CSV_COLUMNS = (
     "underflow", "precompute_s", "precompute_cached", "memory_bytes", "artifact_bytes",
     "peak_rss_bytes", "frame_ms", "wall_s", "status", "run_id", "git_sha", "profile",
     "renderer", "device", "ringing", "rel_l2", "advice", "note", "load_1m", "timestamp",
-    "partial_run", "imported_from")
+    "partial_run", IMPORTED_FROM)
 
 
 def _num(value: Any, fmt: str = ".2f") -> str:
@@ -158,13 +161,13 @@ def _load_text(rows: Sequence[Mapping[str, Any]]) -> str:
 
 def _marks(row: Mapping[str, Any]) -> str:
     """† a row of an interrupted run, ‡ a row imported from an earlier report's CSV."""
-    return (" †" if row.get("partial_run") else "") + (" ‡" if row.get("imported_from") else "")
+    return (" †" if row.get("partial_run") else "") + (" ‡" if row.get(IMPORTED_FROM) else "")
 
 
 def _imported_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     """Where rows came from a CSV (``stability --import-csv``) rather than a run into this
     store: how many, from which file, and what they keep."""
-    sources = Counter(str(r["imported_from"]) for r in rows if r.get("imported_from"))
+    sources = Counter(str(r[IMPORTED_FROM]) for r in rows if r.get(IMPORTED_FROM))
     if not sources:
         return []
     files = ", ".join(f"`{source}` ({count})" for source, count in sources.items())
@@ -225,7 +228,8 @@ def format_markdown(rows: Sequence[Mapping[str, Any]], *,
                       "64x128 grid (ringing: most negative over largest value; rel. L2 against "
                       "the light), and the Phong zonal coefficients at 16 bands.", "",
                       "| case | outcome | ringing | rel. L2 | reason |", "|---|---|---:|---:|---|"]
-            lines += [f"| {r['case']} | **{r['outcome']}** | {_num(r.get('ringing'), '.3f')} | "
+            lines += [f"| {r['case']}{_marks(r)} | **{r['outcome']}** | "
+                      f"{_num(r.get('ringing'), '.3f')} | "
                       f"{_num(r.get('rel_l2'), '.3f')} | {_short(r.get('reason'))} |" for r in mine]
             continue
         lines += ["", f"## {method}", "",

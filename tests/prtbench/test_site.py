@@ -359,8 +359,10 @@ def test_stability_page_colours_each_outcome_and_prints_the_stored_numbers(store
     assert sorted(outcomes) == sorted((r["case"], r["outcome"], r["outcome"])
                                       for r in STABILITY_ROWS)
     stored = {r["case"]: r for r in STABILITY_ROWS}
+    from prtbench.site.stability import COLUMNS
+
     numbers = [n for n in _parse(page).numbers if "data-case" in n["row"]]
-    assert numbers
+    assert len(numbers) == len(STABILITY_ROWS) * len(COLUMNS)  # every column of every row
     for number in numbers:
         row = stored[number["row"]["data-case"]]
         key = number["field"]

@@ -110,6 +110,8 @@ def _check_site(site: Path, browser, *, screenshots: Path | None) -> None:
     pages = sorted(site.glob("*.html"))
     scene_pages = [p for p in pages if p.name.startswith("scene-")]
     assert scene_pages and (site / "index.html") in pages
+    if site.name == "site" and site.parent.name.startswith("browser-site"):  # the smoke site
+        assert (site / "stability-smoke.html") in pages  # its colours are checked below
     for page in pages:
         before = len(browser.console_errors)
         browser.open(page)
