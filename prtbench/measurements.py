@@ -161,13 +161,9 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
     images : dict of str to ndarray, optional
         Panels stored losslessly under ``run_id`` (keys unique within the run).
     """
-    from .results import PROFILES
     from .results import git_sha as current_sha
 
-    if profile not in PROFILES:
-        from .errors import UnknownNameError
-
-        raise UnknownNameError("profile", profile, PROFILES)
+    _check_profile(profile)
     payloads = [json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in rows]
     blobs = [(key, _encode_image(value)) for key, value in (images or {}).items()]
     sha = git_sha if git_sha is not None else current_sha()
@@ -182,14 +178,30 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
     _write(results_path, insert)
 
 
+def _check_profile(profile: str) -> None:
+    from .results import PROFILES
+
+    if profile not in PROFILES:
+        from .errors import UnknownNameError
+
+        raise UnknownNameError("profile", profile, PROFILES)
+
+
 def _insert_rows(conn: sqlite3.Connection, name: str, run_id: str, payloads: Sequence[str], *,
-                 profile: str, git_sha: str, renderer: str, device: str, timestamp: str,
-                 first: int = 0) -> None:
+                 profile: str, git_sha: str, renderer: str, device: str, timestamp: str) -> None:
+    """One measurement row per JSON payload, numbered from 0 within this call."""
     conn.executemany(
         "INSERT INTO measurements (name, run_id, row, profile, git_sha, renderer, device, "
         "timestamp, data) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        [(name, run_id, first + i, profile, git_sha, renderer, device, timestamp, p)
+        [(name, run_id, i, profile, git_sha, renderer, device, timestamp, p)
          for i, p in enumerate(payloads)])
+
+
+def _insert_report_run(conn: sqlite3.Connection, kind: str, name: str, *, profile: str,
+                       run_id: str, git_sha: str, members: str) -> None:
+    conn.execute("INSERT INTO report_runs (kind, name, profile, run_id, git_sha, timestamp, "
+                 "members) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                 (kind, name, profile, run_id, git_sha, _utc_now(), members))
 
 
 @dataclass(frozen=True)
@@ -222,28 +234,22 @@ def record_batches(name: str, batches: Sequence[Batch], *, results_path: str | P
     For rows carried over from an earlier record (:mod:`prtbench.stability.importing`): each
     batch keeps its own revision, renderer, device and time, where :func:`record` stamps now.
     """
-    from .results import PROFILES
     from .results import git_sha as current_sha
 
     for batch in batches:
-        if batch.profile not in PROFILES:
-            from .errors import UnknownNameError
-
-            raise UnknownNameError("profile", batch.profile, PROFILES)
+        _check_profile(batch.profile)
     encoded = [[json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in b.rows]
                for b in batches]
-    sha, stamp = current_sha(), _utc_now()
+    sha = current_sha()
 
     def insert(conn: sqlite3.Connection) -> None:
-        first: dict[str, int] = {}
         for batch, payloads in zip(batches, encoded):
             _insert_rows(conn, name, batch.run_id, payloads, profile=batch.profile,
                          git_sha=batch.git_sha, renderer=batch.renderer, device=batch.device,
-                         timestamp=batch.timestamp, first=first.get(batch.run_id, 0))
-            first[batch.run_id] = first.get(batch.run_id, 0) + len(payloads)
-        conn.executemany("INSERT INTO report_runs (kind, name, profile, run_id, git_sha, "
-                         "timestamp, members) VALUES ('table', ?, ?, ?, ?, ?, '{}')",
-                         [(name, profile, run_id, sha, stamp) for run_id, profile in completed])
+                         timestamp=batch.timestamp)
+        for run_id, profile in completed:
+            _insert_report_run(conn, "table", name, profile=profile, run_id=run_id,
+                               git_sha=sha, members="{}")
 
     _write(results_path, insert)
 
@@ -344,9 +350,8 @@ def complete_report(kind: str, name: str, *, profile: str, run_id: str,
     sha = git_sha if git_sha is not None else current_sha()
 
     def insert(conn: sqlite3.Connection) -> None:
-        conn.execute("INSERT INTO report_runs (kind, name, profile, run_id, git_sha, timestamp, "
-                     "members) VALUES (?, ?, ?, ?, ?, ?, ?)",
-                     (kind, name, profile, run_id, sha, _utc_now(), payload))
+        _insert_report_run(conn, kind, name, profile=profile, run_id=run_id, git_sha=sha,
+                           members=payload)
 
     _write(results_path, insert)
     report = latest_report(kind, name, profile=profile, results_path=results_path, run_id=run_id)

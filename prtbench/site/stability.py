@@ -68,20 +68,16 @@ def collect(results_path: Path) -> list[StabilityPage]:
     -------
     list of StabilityPage
     """
-    from ..errors import InvalidInputError, PrtbenchError
     from ..profiles import PROFILES
-    from ..stability.matrix import stored_rows
+    from ..stability.matrix import stored_rows, stored_runs
     from ..stability.outcome import OUTCOMES
     from ..stability.report import IMPORTED_FROM, method_summary
 
     pages = []
     for profile in PROFILES:
-        try:
-            rows = stored_rows(profile=profile, results_path=results_path, partial=True)
-        except InvalidInputError:  # an unreadable store is an error, not an empty page
-            raise
-        except PrtbenchError:  # no stability run of this profile
-            continue
+        if not stored_runs(profile=profile, results_path=results_path, partial=True)[0]:
+            continue  # no stability run of this profile (an unreadable store raises)
+        rows = stored_rows(profile=profile, results_path=results_path, partial=True)
         for r in rows:  # the page prints MiB, as the Markdown report does
             rss = r.get("peak_rss_bytes")
             r["peak_rss_mib"] = None if rss is None else float(rss) / 2**20

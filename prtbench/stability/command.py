@@ -86,10 +86,9 @@ def _import(args: argparse.Namespace, results: Path | None, table: str) -> None:
     """``--import-csv``: the CSV's rows into the store, everything checked before the write
     (so that a following ``--from-store`` cannot fail on what was just stored)."""
     from .. import outputs
-    from ..errors import InvalidInputError, PrtbenchError
+    from ..errors import InvalidInputError
     from ..results import default_path
-    from .importing import import_csv, read_rows
-    from .matrix import stored_rows
+    from .importing import import_csv
 
     measuring = [flag for flag, value in (("--method", args.method), ("--case", args.case),
                                           ("--out", args.out), ("--timeout", args.timeout))
@@ -101,19 +100,9 @@ def _import(args: argparse.Namespace, results: Path | None, table: str) -> None:
                                 "accepted: --import-csv [--from-store [--partial] [--note TEXT] "
                                 "[--json FILE]] (an import measures nothing)")
     outputs.check_results_store("--results", results or default_path())
-    if args.from_store and not args.partial:
-        rows, _ = read_rows(Path(args.import_csv))
-        if all(r.get("partial_run") for r in rows):
-            try:
-                stored_rows(profile=args.profile, results_path=results, table=table)
-            except InvalidInputError:  # an unusable store: its own message
-                raise
-            except PrtbenchError:  # no complete run: the report would have no rows
-                raise InvalidInputError(
-                    f"--import-csv {args.import_csv}: only rows of interrupted runs and no "
-                    f"complete {args.profile} run in the store; accepted: --partial") from None
     summary = import_csv(Path(args.import_csv), results_path=results, table=table,
-                         profile=args.profile if args.from_store else None)
+                         profile=args.profile if args.from_store else None,
+                         need_complete_run=args.from_store and not args.partial)
     print(f"imported {summary.complete_rows + summary.partial_rows} rows of {summary.source} "
           f"into {results or default_path()} (table {table}, profile {summary.profile}: "
           f"{summary.complete_rows} in complete run {summary.complete_run}, "

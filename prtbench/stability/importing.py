@@ -204,7 +204,7 @@ def _batches(rows: Sequence[Mapping[str, Any]], run_id: str) -> list:
 
 
 def import_csv(path: Path, *, results_path: Path | None, table: str | None = None,
-               profile: str | None = None) -> ImportSummary:
+               profile: str | None = None, need_complete_run: bool = False) -> ImportSummary:
     """Store the rows of the stability CSV ``path`` as imported rows of ``table``.
 
     Parameters
@@ -216,6 +216,9 @@ def import_csv(path: Path, *, results_path: Path | None, table: str | None = Non
         The measurement table (default :data:`prtbench.stability.matrix.TABLE`).
     profile : str, optional
         The profile the rows must have (``--profile`` when the report is rebuilt next).
+    need_complete_run : bool
+        Refuse an import after which the store would hold no complete run of the rows'
+        profile (``--from-store`` without ``--partial`` would then have no rows to report).
 
     Returns
     -------
@@ -224,11 +227,12 @@ def import_csv(path: Path, *, results_path: Path | None, table: str | None = Non
     Raises
     ------
     InvalidInputError
-        A bad file (:func:`read_rows`), rows of another profile than ``profile``, or no row
-        that the store does not already hold; nothing is written then.
+        A bad file (:func:`read_rows`), rows of another profile than ``profile``, no row
+        that the store does not already hold, or (``need_complete_run``) no complete run;
+        nothing is written then.
     """
     from .. import measurements
-    from .matrix import TABLE
+    from .matrix import TABLE, stored_runs
 
     table = table or TABLE
     rows, source = read_rows(Path(path))
@@ -245,6 +249,10 @@ def import_csv(path: Path, *, results_path: Path | None, table: str | None = Non
         row[IMPORTED_FROM] = row.get(IMPORTED_FROM) or source
     complete = [r for r in new if not r.get("partial_run")]
     partial = [r for r in new if r.get("partial_run")]
+    if need_complete_run and not complete and not stored_runs(
+            profile=found, results_path=results_path, table=table)[0]:
+        raise InvalidInputError(f"--import-csv {path}: only rows of interrupted runs and no "
+                                f"complete {found} run in the store; accepted: --partial")
     complete_run = measurements.new_run_id() if complete else None
     partial_run = measurements.new_run_id() if partial else None
     batches = [*(_batches(complete, complete_run) if complete else []),

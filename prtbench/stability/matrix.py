@@ -182,9 +182,9 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
 
     Matrix runs over different methods or cases (e.g. run side by side) are merged; each row
     keeps the run it came from (its moderate case is that run's). Newest is the row's own
-    measurement time (rows imported from a CSV keep theirs), then the newest run. Only complete runs count
-    unless ``partial``: then an interrupted run (rows stored, no report run) counts too, and
-    its rows are marked ``partial_run = True``.
+    measurement time (rows imported from a CSV keep theirs), then the newest run. Only
+    complete runs count unless ``partial``: then an interrupted run (rows stored, no report
+    run) counts too, and its rows are marked ``partial_run = True``.
 
     Raises
     ------
@@ -194,14 +194,8 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
     from .. import measurements
     from ..errors import PrtbenchError
 
-    complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
-        results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
-        "profile = ?", [table, profile])}
-    # Every run with rows, newest first (by its last row).
-    runs = [r[0] for r in measurements._read(  # noqa: SLF001
-        results_path, "SELECT run_id FROM measurements WHERE name = ? AND profile = ? "
-        "GROUP BY run_id ORDER BY MAX(id) DESC", [table, profile])]
-    runs = [r for r in runs if partial or r in complete]
+    runs, complete = stored_runs(profile=profile, results_path=results_path, partial=partial,
+                                 table=table)
     if not runs:
         path = measurements.store_path(results_path)
         raise PrtbenchError(f"no {'' if partial else 'complete '}stability run for profile "
@@ -227,6 +221,25 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
         mine = [row for (method, _), row in chosen.items() if method == m]
         out += sorted(mine, key=_catalogue_order(m, profile)) if m != CORE else mine
     return out
+
+
+def stored_runs(*, profile: str, results_path: Path | None, partial: bool = False,
+                table: str = TABLE) -> tuple[list[str], set[str]]:
+    """The stability runs of ``profile`` with rows in the store, newest first (by their last
+    row), complete ones only unless ``partial``; and the set of complete ones.
+
+    Both empty when the store or its tables do not exist; an unusable store raises
+    :class:`~prtbench.errors.InvalidInputError` (the store's reader).
+    """
+    from .. import measurements
+
+    complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
+        results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
+        "profile = ?", [table, profile])}
+    runs = [r[0] for r in measurements._read(  # noqa: SLF001
+        results_path, "SELECT run_id FROM measurements WHERE name = ? AND profile = ? "
+        "GROUP BY run_id ORDER BY MAX(id) DESC", [table, profile])]
+    return [r for r in runs if partial or r in complete], complete
 
 
 def _catalogue_order(method: str, profile: str):
