@@ -391,13 +391,28 @@ def scene_cases(*, profile: str, sdf: bool, ground: bool = True) -> list[Case]:
                     for name, note, advice in geometry]
 
 
-def material_cases(*, profile: str) -> list[Case]:
+#: Knobs of a wavelet method that bound the lobes it can carry, named in its advice.
+WAVELET_LOBE_KNOBS = ("cubemap", "light_terms", "brdf_keep", "reflect_degree")
+
+
+def material_advice(method_cls) -> str:
+    """What to do instead of an extreme Phong exponent, in the terms of the method's basis."""
+    knobs = {f.name for f in dataclasses.fields(method_cls.Config)}
+    if "sh_bands" in knobs or "cubemap" not in knobs:
+        return ("use exponents <= 1e3 with <= 8 SH bands: a sharper lobe is truncated to the "
+                "bands' blur")
+    raise_ = ", ".join(k for k in WAVELET_LOBE_KNOBS if k in knobs)
+    return (f"use exponents in [1, 1e3], or raise {raise_}: a near-mirror lobe is narrower than "
+            "the cubemap's texels, and a hemisphere-wide one (s = 0) spreads over more wavelets "
+            "than the kept terms")
+
+
+def material_cases(method_cls, *, profile: str) -> list[Case]:
     """The Phong exponents of :data:`SHININESS` (for methods that render glossy materials)."""
+    advice = material_advice(method_cls)
     return [Case(f"shininess={_format_value(s)}", "material", shininess=s,
                  note="Phong exponent of every glossy material (zonal recurrence, reference "
-                      "BRDF sampling)",
-                 advice="use exponents <= 1e3 with <= 8 SH bands: a sharper lobe is truncated "
-                        "to the bands' blur")
+                      "BRDF sampling)", advice=advice)
             for s in SHININESS[profile]]
 
 
@@ -441,7 +456,7 @@ def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
     if scene.sdf is None:
         cases += learning_cases(method_cls)
     if scene.sdf is None and _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
-        cases += material_cases(profile=profile)
+        cases += material_cases(method_cls, profile=profile)
     return cases
 
 

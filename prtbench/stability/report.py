@@ -78,6 +78,11 @@ def _duration(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
 
+def _have(count: int) -> str:
+    """The verb after "N of the cases" (one of them has, two have)."""
+    return "has" if count == 1 else "have"
+
+
 def _missing(rows: Sequence[Mapping[str, Any]],
              expected: Mapping[str, Sequence[str]]) -> dict[str, list[str]]:
     """Per expected method, its catalogue cases without a row (in catalogue order)."""
@@ -111,8 +116,9 @@ def coverage_lines(rows: Sequence[Mapping[str, Any]],
     total = sum(len(v) for v in expected.values())
     absent = sum(len(v) for v in missing.values())
     lines = ["", "## Not measured", "",
-             f"{total - absent} of the {total} catalogue cases of {len(expected)} methods have a "
-             f"stored row; {absent} have none"
+             f"{total - absent} of the {total} catalogue cases of {len(expected)} "
+             f"method{'' if len(expected) == 1 else 's'} {_have(total - absent)} a stored row; "
+             f"{absent} {_have(absent)} none"
              + (":" if absent else ".")]
     if absent:
         lines.append("")

@@ -161,6 +161,23 @@ def test_every_case_of_every_method_says_what_to_do_instead():
         assert [c.name for c in cases if c.name != "moderate" and not c.advice.strip()] == [], name
 
 
+def test_shininess_advice_names_the_methods_own_basis():
+    # An SH method's lobe is cut by its bands; a wavelet method's by its cubemap and the terms it
+    # keeps: advising "<= 8 SH bands" to a method without SH bands would name the wrong cause.
+    from prtbench.method import METHODS
+
+    def advice(name):
+        return {c.advice for c in cases_mod.method_cases(METHODS.get(name), profile="quick")
+                if c.name.startswith("shininess=")}
+
+    assert advice("sloan-matrix") == {cases_mod.material_advice(METHODS.get("sloan-matrix"))}
+    assert "SH bands" in advice("sloan-matrix").pop()
+    for name, knobs in (("wavelet-tp", "cubemap, light_terms, brdf_keep"),
+                        ("neural-wavelet", "cubemap, light_terms, reflect_degree")):
+        (text,) = advice(name)
+        assert "SH bands" not in text and f"raise {knobs}:" in text, text
+
+
 # --- lights ------------------------------------------------------------------------------------
 
 def test_extreme_lights_deliver_what_they_claim():
@@ -351,7 +368,9 @@ def test_report_lists_what_the_catalogue_has_and_the_store_does_not():
     assert "| light=black † | **ok** |" in md and "m (1 of 3 rows)" in md
     assert "newest row `new`" in md and "Load (1-min average" in md and "1.25-2.50" in md
     full = coverage_lines(rows[:2], {"m": ["moderate", "light=black"]})
-    assert full[-1].endswith("have a stored row; 0 have none.")
+    assert full[-1].endswith("cases of 1 method have a stored row; 0 have none.")
+    one = coverage_lines(rows[:2], {"m": ["moderate", "light=black", "sh_bands=1"]})
+    assert "2 of the 3 catalogue cases of 1 method have a stored row; 1 has none:" in one
 
 
 def test_core_case_names_are_the_rows_core_rows_measures():
