@@ -96,6 +96,10 @@ class NeuralWaveletConfig:
                                            "(evaluation); must not overlap train_lights.")
     light_rotations: int = knob(3, "Turns of each training light about +Y (paper: 0°, 120°, "
                                 "240°).", low=1, high=64)
+    light_tilt: float = knob(0.0, "Largest tilt (degrees) of turns i >= 1 of each training "
+                             "light, about a seeded horizontal axis: moves its sources to other "
+                             "elevations (0: turns about +Y only, as the paper).", low=0.0,
+                             high=180.0)
     train_views: int = knob(64, "Training cameras near the scene's trajectory.", low=1,
                             high=100_000)
     lights_per_view: int = knob(2, "Training lights rendered per camera (paper: 2).", low=1,
@@ -164,6 +168,14 @@ class NeuralWavelet(Method):
     light_dependence_why = ("the transport is learnt from images under a family of training "
                             "lights; other lights are extrapolated")
     profile_overrides = PROFILE_OVERRIDES
+
+    @classmethod
+    def cache_identity(cls, config: NeuralWaveletConfig) -> dict:
+        from prtbench.neural_wavelet.data import DATA_KNOB_DEFAULTS
+
+        # Knobs added later leave the artifacts trained before them at their old keys.
+        return {k: v for k, v in super().cache_identity(config).items()
+                if DATA_KNOB_DEFAULTS.get(k, object()) != v}
 
     @classmethod
     def validate(cls, scene, config: NeuralWaveletConfig) -> None:

@@ -14,8 +14,12 @@ feeds the network at run time. Only front-facing covered pixels become training 
 
 **Lights.** Each training light is a registered light (HDRIs and the analytic ``sky``, ``sun``,
 ``purple``) rotated about +Y by 360°·i/``light_rotations`` (the paper rotates each map by 120° and
-240°: ``light_rotations=3``). A rotation is an exact column shift of the lat-long map.
-Held-out lights (never in training) are checked to be disjoint from the training names.
+240°: ``light_rotations=3``). A rotation is an exact column shift of the lat-long map. With
+``light_tilt`` > 0, turns i ≥ 1 are also tilted by a seeded angle in ±``light_tilt`` degrees
+about a seeded horizontal axis (a bilinear resampling): a turn about +Y keeps every source at
+its elevation, so a held-out light whose sun sits lower than any training light's is otherwise
+an extrapolation. Held-out lights (never in training) are checked to be disjoint from the
+training names.
 
 **Views.** Training cameras are the scene's trajectory views moved by a seeded yaw of
 ±[``view_jitter``/3, ``view_jitter``] degrees about the target, a pitch of ±``view_jitter``/2
@@ -41,8 +45,11 @@ from prtbench.errors import InvalidInputError
 #: Bump when the data (rendering, G-buffer, views, lights) changes for the same knobs.
 DATA_VERSION = 1
 #: The knobs of the method config that change the training data.
-DATA_KNOBS = ("bounces", "train_lights", "light_rotations", "train_views", "lights_per_view",
-              "view_jitter", "train_width", "train_height", "train_spp", "cubemap", "seed")
+DATA_KNOBS = ("bounces", "train_lights", "light_rotations", "light_tilt", "train_views",
+              "lights_per_view", "view_jitter", "train_width", "train_height", "train_spp",
+              "cubemap", "seed")
+#: Data knobs left out of the dataset key at this value (added later: the key stays as it was).
+DATA_KNOB_DEFAULTS = {"light_tilt": 0.0}
 
 
 def rotated_light(light, degrees: float):
@@ -58,16 +65,50 @@ def rotated_light(light, degrees: float):
                             source=f"{light.source} rotated by {shift} columns")
 
 
-def training_lights(names, rotations: int) -> list:
-    """Every training light: each name at ``rotations`` turns about +Y."""
+def tilted_light(light, degrees: float, *, axis_azimuth_deg: float):
+    """``light`` turned by ``degrees`` about the horizontal axis at ``axis_azimuth_deg`` from +X
+    towards +Z (bilinear resampling of the lat-long map; name ``name~deg``).
+
+    The tilted map's radiance from direction d is ``light``'s from R⁻¹d, R the rotation, so a
+    source at direction s moves to R s.
+    """
+    from prtbench.lights import EnvironmentLight
+
+    if float(degrees) == 0.0:
+        return light
+    phi, theta = math.radians(float(axis_azimuth_deg)), math.radians(float(degrees))
+    axis = np.array([math.cos(phi), 0.0, math.sin(phi)])
+    # Rodrigues: R = I cos t + sin t [a]x + (1 - cos t) a aT; R⁻¹ = Rᵀ.
+    cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                      [-axis[1], axis[0], 0.0]])
+    rotation = (np.eye(3) * math.cos(theta) + math.sin(theta) * cross
+                + (1.0 - math.cos(theta)) * np.outer(axis, axis))
+    dirs = light.texel_directions().reshape(-1, 3)
+    image = light.radiance(dirs @ rotation).reshape(light.image.shape)  # rows: Rᵀ d
+    return EnvironmentLight(f"{light.name}~{float(degrees):.0f}", image.astype(np.float32),
+                            source=f"{light.source} tilted by {float(degrees):.3g} degrees "
+                                   f"about the horizontal axis at {float(axis_azimuth_deg):.3g}")
+
+
+def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0) -> list:
+    """Every training light: each name at ``rotations`` turns about +Y; with ``tilt`` > 0,
+    turns i ≥ 1 also tilted by a seeded angle in ±``tilt`` degrees (module docstring)."""
     from prtbench.lights import get_light
 
     if int(rotations) != rotations or rotations < 1:
         raise InvalidInputError(f"light_rotations={rotations!r}; accepted: integers >= 1")
+    if not 0.0 <= float(tilt) <= 180.0:
+        raise InvalidInputError(f"light_tilt={tilt!r}; accepted: degrees in [0, 180]")
+    rng = np.random.default_rng([int(seed), 0x544C])  # stream tag "TL"
     out = []
     for name in names:
         base = get_light(name)
-        out += [rotated_light(base, 360.0 * i / rotations) for i in range(int(rotations))]
+        for i in range(int(rotations)):
+            light = rotated_light(base, 360.0 * i / rotations)
+            if tilt and i:
+                angle, azimuth = float(tilt) * rng.uniform(-1.0, 1.0), rng.uniform(0.0, 360.0)
+                light = tilted_light(light, angle, axis_azimuth_deg=azimuth)
+            out.append(light)
     return out
 
 
@@ -176,7 +217,8 @@ def indirect_image(scene, light, view, *, width: int, height: int, spp: int, bou
 
 
 def dataset_key(scene, config, views) -> str:
-    knobs = {k: getattr(config, k) for k in DATA_KNOBS}
+    knobs = {k: getattr(config, k) for k in DATA_KNOBS
+             if DATA_KNOB_DEFAULTS.get(k, object()) != getattr(config, k, None)}
     eyes = [[v.eye, v.target, v.fov_y] for v in views]
     return content_key("nw-data", DATA_VERSION, scene.content_hash(), knobs, eyes)
 
@@ -196,7 +238,8 @@ def build_dataset(scene, config, *, progress: bool = True) -> dict[str, np.ndarr
 
     from .gbuffer import GBufferPass, pixel_rows
 
-    lights = training_lights(config.train_lights, config.light_rotations)
+    lights = training_lights(config.train_lights, config.light_rotations,
+                             tilt=config.light_tilt, seed=config.seed)
     views = training_views(scene, count=config.train_views, jitter=config.view_jitter,
                            seed=config.seed)
 

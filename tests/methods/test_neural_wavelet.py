@@ -256,6 +256,49 @@ def test_artifact_key_holds_the_training_cameras():
     assert artifact_key(vertex, two, vcfg) == artifact_key(vertex, one, vcfg)
 
 
+def test_a_tilted_light_moves_its_sun_by_the_tilt_and_keeps_its_power():
+    """Turning about a horizontal axis carries the brightest direction s to R s (Rodrigues) and,
+    being a rotation, keeps the total power up to the bilinear resampling's blur."""
+    from prtbench.neural_wavelet.data import tilted_light
+
+    sun = get_light("sun")
+    assert tilted_light(sun, 0.0, axis_azimuth_deg=30.0) is sun
+    tilted = tilted_light(sun, 40.0, axis_azimuth_deg=90.0)  # axis +Z: x-y plane turns by 40°
+    s = sun.brightest_direction()
+    c, k = np.cos(np.radians(40.0)), np.sin(np.radians(40.0))
+    want = np.array([c * s[0] - k * s[1], k * s[0] + c * s[1], s[2]])
+    got = tilted.brightest_direction()
+    angle = np.degrees(np.arccos(np.clip(got @ want, -1.0, 1.0)))
+    assert angle < 0.6, (got, want)  # within about one texel of the 512-row map (0.35°)
+    moved = np.degrees(np.arccos(np.clip(got @ s, -1.0, 1.0)))
+    assert moved > 20.0, moved  # the sun really moved (it is not on the axis)
+    np.testing.assert_allclose(tilted.total_power(), sun.total_power(), rtol=0.02)
+
+
+def test_light_tilt_zero_keeps_the_data_and_artifact_keys_and_tilts_only_later_turns():
+    from prtbench.method import artifact_key
+    from prtbench.neural_wavelet.data import dataset_key, training_lights, training_views
+
+    cls = METHODS.get("neural-wavelet")
+    scene = _scene()
+    plain = cls.make_config({}, profile="smoke")
+    tilted = cls.make_config({"light_tilt": 30.0}, profile="smoke")
+    views = training_views(scene, count=2, jitter=20.0, seed=0)
+    # The knob was added after models were trained: at 0 it is not in either key.
+    assert "light_tilt" not in cls.cache_identity(plain)
+    assert artifact_key(cls, scene, plain) != artifact_key(cls, scene, tilted)
+    assert dataset_key(scene, plain, views) != dataset_key(scene, tilted, views)
+    upright = training_lights(("sky",), 3)
+    turned = training_lights(("sky",), 3, tilt=30.0, seed=0)
+    assert [lt.name for lt in upright] == ["sky", "sky@120", "sky@240"]
+    assert turned[0] is not None and turned[0].name == "sky"  # turn 0: the light as given
+    assert all("~" in lt.name for lt in turned[1:]), [lt.name for lt in turned]
+    again = training_lights(("sky",), 3, tilt=30.0, seed=0)
+    assert [lt.content_hash() for lt in again] == [lt.content_hash() for lt in turned]
+    with pytest.raises(InvalidInputError, match="light_tilt=200"):
+        training_lights(("sky",), 3, tilt=200.0)
+
+
 def test_glossy_comparison_refuses_a_scene_without_glossy_materials():
     from prtbench.neural_wavelet.evaluate import require_glossy
 
