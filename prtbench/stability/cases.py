@@ -325,16 +325,37 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
     return cases
 
 
-def light_cases(*, profile: str) -> list[Case]:
+def light_cases(method_cls, *, profile: str) -> list[Case]:
     """Every extreme light (:data:`prtbench.stability.lights.LIGHTS`); smoke keeps four."""
     from .lights import LIGHTS
 
     names = list(LIGHTS) if profile == "quick" else ["black", "huge-constant", "below-horizon",
                                                      "sun-0.1deg"]
     return [Case(f"light={name}", "light", light=name, note=LIGHTS[name].note,
-                 advice="more SH bands (or windowing) for all-frequency light, or a method "
-                        "that stores visibility per pixel")
-            for name in names]
+                 advice=light_advice(method_cls, name)) for name in names]
+
+
+#: Extreme lights whose source is far smaller than a cubemap texel at the wavelet methods' default
+#: face resolutions (N = 16-32: texels of 3-6 degrees).
+SMALL_SOURCES = frozenset({"single-texel", "sun-0.1deg"})
+
+
+def light_advice(method_cls, light: str) -> str:
+    """What to do instead of the extreme ``light``, in the terms of the method's basis."""
+    knobs = _knob_names(method_cls)
+    if not _wavelet_lit(method_cls):
+        return ("more SH bands (or windowing) for all-frequency light, or a method that stores "
+                "visibility per pixel")
+    if light in SMALL_SOURCES:
+        advice = ("raise cubemap (texels per face) and light_terms: a source smaller than one "
+                  "cubemap texel is spread over the whole texel, which softens its shadows and "
+                  "highlights")
+    else:
+        advice = "raise light_terms: the kept terms bound how much of the light is transported"
+    if "train_lights" in knobs:
+        advice += ("; a learnt transport is fitted only under its training lights: train under "
+                   "lights like this one (train_lights, light_tilt)")
+    return advice
 
 
 SCALE_ADVICE = ("model the scene in units where its bounds diagonal is 0.01..1e6 and keep it "
@@ -391,14 +412,27 @@ def scene_cases(*, profile: str, sdf: bool, ground: bool = True) -> list[Case]:
                     for name, note, advice in geometry]
 
 
+def _knob_names(method_cls) -> set[str]:
+    return {f.name for f in dataclasses.fields(method_cls.Config)}
+
+
+def _wavelet_lit(method_cls) -> bool:
+    """Whether the method lights with Haar wavelets of a cubemap by default (not SH bands)."""
+    fields = {f.name: f for f in dataclasses.fields(method_cls.Config)}
+    if "cubemap" not in fields:
+        return False
+    lighting = fields.get("lighting")
+    return "sh_bands" not in fields or (lighting is not None and lighting.default == "wavelet")
+
+
 #: Knobs of a wavelet method that bound the lobes it can carry, named in its advice.
 WAVELET_LOBE_KNOBS = ("cubemap", "light_terms", "brdf_keep", "reflect_degree")
 
 
 def material_advice(method_cls) -> str:
     """What to do instead of an extreme Phong exponent, in the terms of the method's basis."""
-    knobs = {f.name for f in dataclasses.fields(method_cls.Config)}
-    if "sh_bands" in knobs or "cubemap" not in knobs:
+    knobs = _knob_names(method_cls)
+    if not _wavelet_lit(method_cls):
         return ("use exponents <= 1e3 with <= 8 SH bands: a sharper lobe is truncated to the "
                 "bands' blur")
     raise_ = ", ".join(k for k in WAVELET_LOBE_KNOBS if k in knobs)
@@ -450,7 +484,8 @@ def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
         return [MODERATE]
     scene = case_base_scene(base["scene"], base["variant"], base["scene_params"])
     has_ground = any(o.name == "ground" for o in scene.objects)
-    cases = [MODERATE, *knob_cases(method_cls, profile=profile), *light_cases(profile=profile),
+    cases = [MODERATE, *knob_cases(method_cls, profile=profile),
+             *light_cases(method_cls, profile=profile),
              *scene_cases(profile=profile, sdf=scene.sdf is not None, ground=has_ground)]
     cases += edges.method_edge_cases(method_cls, base=base, scene=scene, profile=profile)
     if scene.sdf is None:

@@ -103,7 +103,8 @@ def coverage_lines(rows: Sequence[Mapping[str, Any]],
         Method name -> its catalogue's case names (every registered method for a report of the
         whole store). None: no coverage section (nothing to compare with).
     notes : sequence of str
-        Why cases were not measured, as the person who wrote the report states it.
+        Why cases were not measured (or, with every case measured, how they were), as the
+        person who wrote the report states it.
 
     Returns
     -------
@@ -142,7 +143,8 @@ def coverage_lines(rows: Sequence[Mapping[str, Any]],
         lines += ["", "Stored cases no longer in the catalogue (kept): "
                   + ", ".join(f"{m} `{c}`" for m, c in stale)]
     if notes:
-        lines += ["", "Why:", ""] + [f"- {n}" for n in notes]
+        # With every case measured the notes explain how, not why something is missing.
+        lines += ["", "Why:" if absent else "Notes:", ""] + [f"- {n}" for n in notes]
     return lines
 
 

@@ -178,6 +178,29 @@ def test_shininess_advice_names_the_methods_own_basis():
         assert "SH bands" not in text and f"raise {knobs}:" in text, text
 
 
+def test_light_advice_names_the_methods_own_basis():
+    # A 0.1-degree sun rings in SH bands but is smeared over one cubemap texel by a wavelet
+    # method; a learnt one is also only fitted under its training lights.
+    from prtbench.method import METHODS
+
+    def advice(name):
+        return {c.name: c.advice for c in cases_mod.method_cases(METHODS.get(name),
+                                                                  profile="quick")
+                if c.name.startswith("light=")}
+
+    vertex, wavelet_tp = advice("vertex"), advice("wavelet-tp")
+    assert all("SH bands" in a for a in vertex.values()), vertex
+    assert "cubemap texel" in wavelet_tp["light=sun-0.1deg"]
+    assert "cubemap texel" in wavelet_tp["light=single-texel"]
+    assert "cubemap" not in wavelet_tp["light=below-horizon"]
+    assert not any("SH bands" in a or "train_lights" in a for a in wavelet_tp.values())
+    # wavelet-image has sh_bands too, but only for lighting='sh'; it lights with wavelets.
+    assert "cubemap texel" in advice("wavelet-image")["light=sun-0.1deg"]
+    neural = advice("neural-wavelet")
+    assert all("train_lights, light_tilt" in a for a in neural.values()), neural
+    assert "SH bands" not in neural["light=below-horizon"]
+
+
 # --- lights ------------------------------------------------------------------------------------
 
 def test_extreme_lights_deliver_what_they_claim():
@@ -360,7 +383,7 @@ def test_report_lists_what_the_catalogue_has_and_the_store_does_not():
     assert ("- m: 2 of 4 cases not measured; its measured cases took 2.6 min median, 5.0 min "
             "at most: `scale=1e-04`, `sh_bands=1`") in text
     assert "- absent: **not measured** (no stored row; 2 cases in its catalogue)" in text
-    assert "m `gone`" in text and "- trained cases take 10 min each" in text
+    assert "m `gone`" in text and "\nWhy:\n\n- trained cases take 10 min each" in text
     assert coverage_lines(rows, None) == []
     md = format_markdown(rows, expected=expected)
     # A registered method without rows is in the summary too, not silently absent.
@@ -369,6 +392,8 @@ def test_report_lists_what_the_catalogue_has_and_the_store_does_not():
     assert "newest row `new`" in md and "Load (1-min average" in md and "1.25-2.50" in md
     full = coverage_lines(rows[:2], {"m": ["moderate", "light=black"]})
     assert full[-1].endswith("cases of 1 method have a stored row; 0 have none.")
+    noted = coverage_lines(rows[:2], {"m": ["moderate", "light=black"]}, ["measured at a0"])
+    assert noted[-3:] == ["Notes:", "", "- measured at a0"]
     one = coverage_lines(rows[:2], {"m": ["moderate", "light=black", "sh_bands=1"]})
     assert "2 of the 3 catalogue cases of 1 method have a stored row; 1 has none:" in one
 
