@@ -179,8 +179,9 @@ def test_shininess_advice_names_the_methods_own_basis():
 
 
 def test_light_advice_names_the_methods_own_basis():
-    # A 0.1-degree sun rings in SH bands but is smeared over one cubemap texel by a wavelet
-    # method; a learnt one is also only fitted under its training lights.
+    # A 0.1-degree sun rings in SH bands; a wavelet method spreads it over one cubemap texel, or
+    # over the triangles between its vertices; a learnt one is only fitted under its training
+    # lights.
     from prtbench.method import METHODS
 
     def advice(name):
@@ -190,15 +191,17 @@ def test_light_advice_names_the_methods_own_basis():
 
     vertex, wavelet_tp = advice("vertex"), advice("wavelet-tp")
     assert all("SH bands" in a for a in vertex.values()), vertex
-    assert "cubemap texel" in wavelet_tp["light=sun-0.1deg"]
-    assert "cubemap texel" in wavelet_tp["light=single-texel"]
-    assert "cubemap" not in wavelet_tp["light=below-horizon"]
+    # Per-vertex wavelet transport: the sun's shadow is cut by the mesh, not by the cubemap.
+    for name in ("light=sun-0.1deg", "light=single-texel"):
+        assert wavelet_tp[name].startswith("subdivide the receiving surfaces"), wavelet_tp
+    assert wavelet_tp["light=below-horizon"].startswith("raise light_terms and keep:")
     assert not any("SH bands" in a or "train_lights" in a for a in wavelet_tp.values())
-    # wavelet-image has sh_bands too, but only for lighting='sh'; it lights with wavelets.
-    assert "cubemap texel" in advice("wavelet-image")["light=sun-0.1deg"]
+    # wavelet-image has sh_bands too, but only for lighting='sh'; it lights with wavelets, per
+    # pixel: its small sources are cut by the cubemap's texels.
+    assert "one cubemap texel" in advice("wavelet-image")["light=sun-0.1deg"]
     neural = advice("neural-wavelet")
     assert all("train_lights, light_tilt" in a for a in neural.values()), neural
-    assert "SH bands" not in neural["light=below-horizon"]
+    assert neural["light=below-horizon"].startswith("raise light_terms:")
 
 
 # --- lights ------------------------------------------------------------------------------------
