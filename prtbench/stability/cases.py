@@ -345,11 +345,19 @@ WAVELET_PER_VERTEX = ("wavelet-vertex", "wavelet-tp")
 
 def light_advice(method_cls, light: str) -> str:
     """What to do instead of the extreme ``light``, in the terms of the method's basis."""
-    knobs = _knob_names(method_cls)
+    from .edges import PER_VERTEX_METHODS
+
+    knobs, name = _knob_names(method_cls), getattr(method_cls, "name", "")
     if not _wavelet_lit(method_cls):
+        if light in SMALL_SOURCES and name in PER_VERTEX_METHODS:
+            # Measured (vertex, 0.1-degree sun): 19.1 dB; 19.3 at 8 bands; 22.7 with the ground
+            # at 64 subdivisions, 25.3 with both. Per texel (texture-tp) 8 bands alone give +2.7.
+            return ("subdivide the receiving surfaces, then raise sh_bands (<= 8): per-vertex "
+                    "transfer interpolates a point-like source's sharp shadow between vertices, "
+                    "which more bands alone do not restore; or store transfer per texel")
         return ("more SH bands (or windowing) for all-frequency light, or a method that stores "
                 "visibility per pixel")
-    if light in SMALL_SOURCES and getattr(method_cls, "name", "") in WAVELET_PER_VERTEX:
+    if light in SMALL_SOURCES and name in WAVELET_PER_VERTEX:
         # Measured on the base scene's 0.1-degree sun: wavelet-vertex 19.2 dB, 26.3 and 32.9 dB
         # with the ground at 16 and 64 subdivisions; wavelet-tp 19.4 dB at cubemap 16, 32 and
         # 64 and at 256 light terms alike (the shadow is interpolated between vertices).

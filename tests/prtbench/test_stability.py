@@ -190,7 +190,10 @@ def test_light_advice_names_the_methods_own_basis():
                 if c.name.startswith("light=")}
 
     vertex, wavelet_tp = advice("vertex"), advice("wavelet-tp")
-    assert all("SH bands" in a for a in vertex.values()), vertex
+    assert vertex["light=sun-0.1deg"].startswith("subdivide the receiving surfaces, then raise "
+                                                 "sh_bands"), vertex
+    assert vertex["light=below-horizon"].startswith("more SH bands"), vertex
+    assert advice("texture-tp")["light=sun-0.1deg"].startswith("more SH bands")  # per texel
     # Per-vertex wavelet transport: the sun's shadow is cut by the mesh, not by the cubemap.
     for name in ("light=sun-0.1deg", "light=single-texel"):
         assert wavelet_tp[name].startswith("subdivide the receiving surfaces"), wavelet_tp
