@@ -203,8 +203,9 @@ def test_light_advice_names_the_methods_own_basis():
     # pixel: its small sources are cut by the cubemap's texels.
     assert "one cubemap texel" in advice("wavelet-image")["light=sun-0.1deg"]
     neural = advice("neural-wavelet")
-    assert all(a.endswith("add lights like this one to train_lights") for a in neural.values())
-    assert neural["light=below-horizon"].startswith("raise light_terms:")
+    assert all("train_lights" in a and "light_tilt" not in a for a in neural.values()), neural
+    assert neural["light=below-horizon"].startswith("train under lights like this one")
+    assert neural["light=sun-0.1deg"].startswith("raise cubemap")
 
 
 # --- lights ------------------------------------------------------------------------------------
