@@ -49,7 +49,7 @@ from .wavelet_relight import SELECTIONS, STORAGES, Relighter, check_wavelet_conf
 
 LIGHTINGS = ("wavelet", "sh")
 #: Bump when the per-pixel transport (G-buffer, lobes) changes (part of its cache key).
-IMAGE_TRANSPORT_VERSION = 1
+IMAGE_TRANSPORT_VERSION = 2
 #: Subsamples per texel side of the SH lighting's texel means (lighting='sh').
 SH_TEXEL_SAMPLES = 2
 
@@ -166,7 +166,8 @@ class WaveletImage(Method):
 
             r_dot = np.maximum(cosines(g["reflect"][sl], dirs_t), 0.0)  # (c, R)
             s = g["shininess"][sl, None]
-            lobe = (s + 1.0) / (2.0 * np.pi) * np.power(r_dot, s)
+            # Zero behind the mirror plane at every s (np.power gives 0^0 = 1 at s = 0).
+            lobe = (s + 1.0) / (2.0 * np.pi) * np.where(r_dot > 0.0, np.power(r_dot, s), 0.0)
             lobe *= g["glossy"][sl, None]  # diffuse pixels: exact zeros, never stored
             return np.stack([np.ones_like(lobe), lobe], axis=1).astype(np.float32)
 

@@ -128,7 +128,7 @@ class WaveletTP(Method):
     """Ng 2004 Haar triple products per vertex: visibility × per-frame BRDF × k-term light."""
 
     Config = WaveletTPConfig
-    precompute_version = "1"
+    precompute_version = "2"  # 2: the s = 0 Phong lobe is a hemisphere about r
     main_knobs = ("light_terms", "cubemap")
     #: On a diffuse scene ``wavelet-vertex`` renders the same at a lower cost.
     glossy_only = True

@@ -12,10 +12,11 @@ vec3 phong_mirror(vec3 n, vec3 wo) {
 }
 
 // f(wi, wo) = kd/π + ks (s+1)/(2π) max(wi·r, 0)^s, r = mirror of wo about n.
-// s = 0 gives a constant lobe everywhere (pow(0, 0) is undefined in GLSL, 1 in the formula).
+// The lobe is zero behind the mirror plane at every s: s = 0 is the hemisphere about r (as the
+// reference's prtphong and sh.phong_zonal; pow(0, 0) is undefined in GLSL anyway).
 vec3 phong_brdf(vec3 kd, vec3 ks, float s, vec3 n, vec3 wi, vec3 wo) {
-    float cos_r = max(dot(wi, phong_mirror(n, wo)), 0.0);
-    float lobe = s > 0.0 ? pow(cos_r, s) : 1.0;
+    float cos_r = dot(wi, phong_mirror(n, wo));
+    float lobe = cos_r > 0.0 ? pow(cos_r, s) : 0.0;
     return kd / BRDF_PI + ks * ((s + 1.0) / (2.0 * BRDF_PI)) * lobe;
 }
 

@@ -356,7 +356,10 @@ def test_phong_brdf_and_srgb_match_numpy(ctx, shader_files):
     f32 = [a.astype(np.float32).astype(np.float64) for a in (n, wi, wo, kd, ks, s)]
     n, wi, wo, kd, ks, s = f32
     r = 2 * np.sum(n * wo, -1, keepdims=True) * n - wo
-    expected = kd / np.pi + ks * (s + 1) / (2 * np.pi) * np.maximum(np.sum(wi * r, -1, keepdims=True), 0) ** s
+    cos_r = np.sum(wi * r, -1, keepdims=True)
+    # Zero behind the mirror plane at every s, s = 0 included (the reference's convention).
+    lobe = np.where(cos_r > 0, np.maximum(cos_r, 0) ** s, 0.0)
+    expected = kd / np.pi + ks * (s + 1) / (2 * np.pi) * lobe
 
     program = gl.load_program(ctx, "fullscreen.vert", "brdf.frag", search_path=[shader_files])
     zero = np.zeros((h, w, 1))

@@ -154,6 +154,11 @@ def test_brdf_factors_integrate_to_their_closed_forms():
     tilted = brdf.factor_texels(np.array([[0.0, 0.0, 1.0]]), n=32, reflections=r, shininess=8.0,
                                 samples=2).sum()
     assert 0.4 < tilted < (9 / 10) * 0.6  # ≈ cos 60° · (s+1)/(s+2), less the clipped part
+    # The lobe is zero behind its mirror plane at every s: with r = -n it never meets the upper
+    # hemisphere, so the factor is 0, s = 0 included (0^0 = 1 made it 1/2 there).
+    for s in (0.0, 1.0):
+        away = brdf.factor_texels(normals, n=16, reflections=-normals, shininess=s, samples=2)
+        assert np.abs(away).max() == 0.0, (s, away.sum(axis=1))
     with pytest.raises(InvalidInputError, match="shininess"):
         brdf.factor_texels(normals, n=8, reflections=normals, shininess=-1.0)
 
