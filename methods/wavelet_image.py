@@ -162,12 +162,10 @@ class WaveletImage(Method):
         lobes = _lobes(scene)
 
         def specular(sl: slice, dirs_t: np.ndarray) -> np.ndarray:
+            from prtbench.sh import phong_lobe
             from prtbench.wavelet.transport import cosines
 
-            r_dot = np.maximum(cosines(g["reflect"][sl], dirs_t), 0.0)  # (c, R)
-            s = g["shininess"][sl, None]
-            # Zero behind the mirror plane at every s (np.power gives 0^0 = 1 at s = 0).
-            lobe = (s + 1.0) / (2.0 * np.pi) * np.where(r_dot > 0.0, np.power(r_dot, s), 0.0)
+            lobe = phong_lobe(cosines(g["reflect"][sl], dirs_t), g["shininess"][sl, None])
             lobe *= g["glossy"][sl, None]  # diffuse pixels: exact zeros, never stored
             return np.stack([np.ones_like(lobe), lobe], axis=1).astype(np.float32)
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .scene import Material, Texture
+from .sh import phong_lobe
 
 #: Name of the registered plug-in (``{"type": PLUGIN_NAME, ...}`` in ``mi.load_dict``).
 PLUGIN_NAME = "prtphong"
@@ -251,8 +252,5 @@ def brdf(kd: np.ndarray, ks: np.ndarray, s: np.ndarray | float, normal: np.ndarr
     wo = np.asarray(view_dir, np.float64)
     wi = np.asarray(light_dir, np.float64)
     r = 2.0 * np.sum(wo * n, axis=-1, keepdims=True) * n - wo
-    cos_alpha = np.maximum(np.sum(wi * r, axis=-1), 0.0)
-    s = np.asarray(s, np.float64)
-    with np.errstate(divide="ignore"):
-        lobe = np.where(cos_alpha > 0, (s + 1) / (2 * np.pi) * cos_alpha ** s, 0.0)
+    lobe = phong_lobe(np.sum(wi * r, axis=-1), s)
     return np.asarray(kd, np.float64) / np.pi + np.asarray(ks, np.float64) * lobe[..., None]

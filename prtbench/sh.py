@@ -154,6 +154,23 @@ def clamped_cosine_zonal(bands: int) -> np.ndarray:
     return 2.0 * np.pi * band_norms(bands) * _legendre_moments(1.0, bands)
 
 
+def phong_lobe(cos_alpha, s) -> np.ndarray:
+    """The normalised Phong lobe (s+1)/(2π)·max(cos α, 0)^s whose zonal coefficients
+    :func:`phong_zonal` gives, broadcast over ``cos_alpha`` and ``s``, in their float precision
+    (float32 inputs stay float32: per-pixel transport evaluates it on large chunks).
+
+    Zero where cos α <= 0 at every s, s = 0 included: the s = 0 lobe is the hemisphere about the
+    mirror direction (as the reference's ``prtphong``), not the full sphere that 0^0 = 1 gives.
+    """
+    cos_alpha, s = np.asarray(cos_alpha), np.asarray(s)
+    dtype = np.result_type(cos_alpha.dtype, s.dtype, np.float32)
+    cos_alpha, s = cos_alpha.astype(dtype, copy=False), s.astype(dtype, copy=False)
+    inside = cos_alpha > 0.0
+    with np.errstate(divide="ignore"):
+        power = np.power(np.where(inside, cos_alpha, 1.0), s)
+    return np.where(inside, (s + 1.0) / (2.0 * np.pi) * power, 0.0)
+
+
 def phong_zonal(s: float, bands: int) -> np.ndarray:
     """Zonal coefficients of the normalised Phong lobe (s+1)/(2π)·max(μ, 0)^s, (bands,).
 

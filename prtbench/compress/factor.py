@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..sh import phong_lobe
 
 #: Singular values below this fraction of the largest count as zero (the numerical rank):
 #: squared values come from an eigendecomposition of the Gram matrix, whose rounding (~1e-16
@@ -88,8 +89,7 @@ def phong_cosine_matrix(kd, ks, shininess: float, *, out_grid: HemisphereGrid,
     """
     wo, wi = out_grid.directions(), in_grid.directions()
     mirror = wo * np.array([-1.0, -1.0, 1.0])  # r = 2(n·ωo)n − ωo with n = +Z
-    lobe = (float(shininess) + 1.0) / (2.0 * np.pi) * np.maximum(mirror @ wi.T, 0.0) ** float(
-        shininess)
+    lobe = phong_lobe(mirror @ wi.T, float(shininess))
     cos_in = wi[:, 2]
     kd, ks = np.asarray(kd, np.float64), np.asarray(ks, np.float64)
     return ((kd[None, :, None] / np.pi) + ks[None, :, None] * lobe[:, None, :]) * cos_in

@@ -74,9 +74,8 @@ def factor_texels(normals: np.ndarray, *, n: int, reflections: np.ndarray | None
         if glossy:
             lobe = _dot(ref[sl], dirs_t)
             np.maximum(lobe, 0.0, out=lobe)
-            # Only where cos α > 0: the lobe is zero behind the mirror plane at every s, s = 0
-            # included (0^0 would make it a full sphere: twice the normalised lobe's energy,
-            # unlike the reference's prtphong and sh.phong_zonal).
+            # sh.phong_lobe in place, in float32 (this chunk loop is the precompute's hot path):
+            # zero behind the mirror plane at every s, s = 0 included (not 0^0 = 1).
             np.power(lobe, np.float32(shininess), out=lobe, where=lobe > 0.0)
             value *= lobe
             value *= np.float32((shininess + 1.0) / (2.0 * math.pi))

@@ -34,6 +34,13 @@ def test_sampled_matrix_is_the_design_brdf_times_the_cosine():
     want = brdf(np.array(KD), np.array(KS), 20.0, np.array([0.0, 0.0, 1.0]), wi[None, :, :],
                 wo[:, None, :]) * wi[None, :, 2:3]  # (o, i, 3)
     assert np.allclose(rho, np.transpose(want, (0, 2, 1)), rtol=1e-12, atol=1e-14)
+    # At s = 0 the lobe is the hemisphere about the mirror direction, as the reference's, not a
+    # constant (0^0 = 1): the sampled BRDF then varies with the outgoing direction (rank > 1).
+    flat = phong_cosine_matrix((0.0,) * 3, KS, 0.0, **SMALL)[:, 0, :]
+    mirror = SMALL["out_grid"].directions() * np.array([-1.0, -1.0, 1.0])
+    behind = mirror @ SMALL["in_grid"].directions().T <= 0
+    assert behind.any() and np.all(flat[behind] == 0.0) and np.all(flat[~behind] > 0.0)
+    assert np.linalg.matrix_rank(flat) > 1
 
 
 def test_error_falls_with_terms_and_full_rank_reproduces_the_samples():

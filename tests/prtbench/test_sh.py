@@ -77,6 +77,18 @@ def test_clamped_cosine_zonal_constants():
     assert g[3] == pytest.approx(0.0, abs=1e-15) and g[5] == pytest.approx(0.0, abs=1e-15)
 
 
+def test_phong_lobe_is_zero_behind_the_mirror_plane_at_every_exponent():
+    # The lobe phong_zonal projects: (s+1)/(2π) cos^s α for cos α > 0, else 0, also at s = 0
+    # (the hemisphere about r, integral 1), never the 0^0 = 1 full sphere.
+    cos = np.array([-1.0, -1e-9, 0.0, 0.5, 1.0])
+    for s in (0.0, 1.0, 64.0):
+        want = np.where(cos > 0, (s + 1) / (2 * np.pi) * np.maximum(cos, 1e-300) ** s, 0.0)
+        assert np.array_equal(sh.phong_lobe(cos, s), want), s
+    assert sh.phong_lobe(np.float32([0.5]), np.float32(3.0)).dtype == np.float32
+    mu = np.linspace(-1.0, 1.0, 200_001)  # ∫ lobe dω = 2π ∫ lobe(μ) dμ = 1 at s = 0 too
+    assert 2 * np.pi * np.trapezoid(sh.phong_lobe(mu, 0.0), mu) == pytest.approx(1.0, abs=1e-4)
+
+
 @pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarning")  # quad near eps
 @pytest.mark.parametrize("s", [0, 1, 10, 100, 1000, 10000])
 def test_phong_zonal_matches_adaptive_quadrature(s):
