@@ -6,8 +6,9 @@ square-root trick, which is uniform in area. Samples are kept a small barycentri
 vertices and edges, where shading normals and transfer are ill-defined (shared by several
 faces) and where ray origins self-intersect most.
 
-UV atlases for transfer textures come from xatlas and are cached on disk by mesh content, as
-they take seconds to minutes on large meshes.
+UV atlases for transfer textures come from xatlas (run in a child process, see
+:mod:`prtbench.uv_pack`) and are cached on disk by mesh content, as they take seconds to minutes
+on large meshes.
 """
 
 from __future__ import annotations
@@ -358,39 +359,11 @@ class Atlas:
 
 
 def _pack(meshes: list[TriangleMesh], resolution: int, padding: int) -> list[dict[str, np.ndarray]]:
-    """Run xatlas on ``meshes`` packed into one ``resolution``² texture."""
-    import xatlas  # imported lazily: `prtbench list` must stay light
+    """Run xatlas on ``meshes`` packed into one ``resolution``² texture (in a child process)."""
+    from .uv_pack import pack_atlas  # xatlas is imported there, lazily: `prtbench list` stays light
 
-    def build(texels_per_unit: float) -> "xatlas.Atlas":
-        atlas = xatlas.Atlas()
-        for m in meshes:
-            atlas.add_mesh(m.positions, m.faces.astype(np.uint32), m.normals)
-        pack = xatlas.PackOptions()
-        pack.resolution = resolution
-        pack.padding = padding
-        pack.bilinear = True
-        pack.texels_per_unit = texels_per_unit
-        atlas.generate(pack_options=pack)
-        return atlas
-
-    # With texels_per_unit = 0 xatlas estimates a scale but may return a larger texture; rescale
-    # that estimate to the requested side, then shrink until every chart fits in one texture.
-    atlas = build(0.0)
-    tpu = atlas.texels_per_unit * resolution / max(atlas.width, atlas.height, 1)
-    for _ in range(40):
-        atlas = build(tpu)
-        if atlas.atlas_count == 1 and atlas.width == resolution and atlas.height == resolution:
-            break
-        tpu *= 0.92
-    else:  # pragma: no cover - xatlas always fits eventually at a small enough scale
-        raise InvalidInputError(f"could not pack the atlas into {resolution}² texels")
-    out = []
-    for k in range(len(meshes)):
-        vmap, faces, uvs = atlas[k]
-        out.append({"vertex_map": vmap.astype(np.int64), "faces": faces.astype(np.int32),
-                    "uvs": np.clip(uvs, 0.0, 1.0).astype(np.float32),
-                    "utilization": np.array(atlas.utilization)})
-    return out
+    return pack_atlas([(m.positions, m.faces, m.normals) for m in meshes],
+                      resolution=resolution, padding=padding)
 
 
 def _check_resolution(resolution: int, padding: int) -> None:
