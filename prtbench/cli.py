@@ -303,7 +303,7 @@ def _sweep(args: argparse.Namespace) -> int:
     results = Path(args.results) if args.results else None
     outcome = run_cells(list(sweep.cells), profile=sweep.profile, results_path=results,
                         workers=args.workers, scheduler=args.scheduler, force=args.force,
-                        progress=not args.quiet)
+                        progress=not args.quiet, worker_threads=args.worker_threads)
     retimed = (retime_serial(outcome, profile=sweep.profile, results_path=results,
                              progress=not args.quiet, settle_s=RETIME_SETTLE_S)
                if args.timing_serial else [])
@@ -485,6 +485,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
     p.add_argument("--profile", default=None, help="smoke, quick or paper (default: the file's, else quick)")
     p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: cores; 0: serial, no Dask)")
+    p.add_argument("--worker-threads", type=int, default=None, metavar="N",
+                   help="tracing/llvmpipe threads per Dask worker (default: its share of the cores)")
     p.add_argument("--scheduler", default=None, help="existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--force", action="store_true", help="measure cells already in the store again")
     p.add_argument("--timing-serial", action="store_true", help="then re-time finished cells one at a time")

@@ -77,7 +77,24 @@ class WorkerSetup(_PluginBase):
             sys.modules["torch"].set_num_threads(1)
 
 
-def local_cluster(n_workers: int):
+def check_worker_threads(threads: int | None) -> int | None:
+    """``threads`` if it is a valid per-worker thread count (or None); else a one-line error."""
+    from ..parallel import MAX_THREADS
+
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or not 1 <= threads <= MAX_THREADS):
+        raise InvalidInputError(f"--worker-threads {threads!r}; accepted: an integer "
+                                f"1..{MAX_THREADS} (threads per Dask worker), or unset for each "
+                                f"worker's share of its host's cores")
+    return threads
+
+
+def local_cluster(n_workers: int, *, threads: int | None = None):
+    """An embedded ``LocalCluster`` of ``n_workers`` processes (one Dask thread each).
+
+    ``threads`` (default: this host's cores // ``n_workers``) is each worker's
+    ``PRTBENCH_THREADS`` / ``LP_NUM_THREADS``.
+    """
     import logging
 
     import dask
@@ -85,7 +102,7 @@ def local_cluster(n_workers: int):
 
     # Spawned worker processes start from a fresh interpreter: no inherited GL context.
     dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
-    threads = max(1, cores() // n_workers)
+    threads = check_worker_threads(threads) or max(1, cores() // n_workers)
     # A free port for its HTTP server: several sweeps may run on one machine.
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                         dashboard_address=":0", silence_logs=logging.ERROR,
@@ -108,15 +125,21 @@ def connect(scheduler: str, *, timeout_s: float = CONNECT_TIMEOUT_S):
                                 f"scheduler, tcp://HOST:PORT") from None
 
 
-def register_setup(client) -> int:
-    """Install :class:`WorkerSetup` on the cluster's workers; returns their number."""
+def register_setup(client, *, threads: int | None = None) -> int:
+    """Install :class:`WorkerSetup` on the cluster's workers; returns their number.
+
+    ``threads`` fixes every worker's thread count; by default each gets its share of its
+    host's cores (cores // workers on that host).
+    """
     from urllib.parse import urlparse
 
+    threads = check_worker_threads(threads)
     host_cores = client.run(cores)  # worker address -> cores of that worker's host
     per_host: dict[str, int] = {}
     for address in host_cores:
         host = urlparse(address).hostname or address
         per_host[host] = per_host.get(host, 0) + 1
-    shares = {a: max(1, n // per_host[urlparse(a).hostname or a]) for a, n in host_cores.items()}
+    shares = {a: threads or max(1, n // per_host[urlparse(a).hostname or a])
+              for a, n in host_cores.items()}
     client.register_plugin(WorkerSetup(shares))
     return max(1, len(host_cores))

@@ -37,7 +37,8 @@ from typing import Any
 
 from ..errors import InvalidInputError
 from ..reproduction import Cell
-from .cluster import connect, cores, local_cluster, one_line, register_setup
+from .cluster import (check_worker_threads, connect, cores, local_cluster, one_line,
+                      register_setup)
 from .grid import prepare_cell
 
 #: Statuses of stored rows that count as measured (failed cells store nothing).
@@ -189,7 +190,7 @@ class _Progress:
 
 def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None = None,
               workers: int | None = None, scheduler: str | None = None, force: bool = False,
-              progress: bool = True) -> SweepOutcome:
+              progress: bool = True, worker_threads: int | None = None) -> SweepOutcome:
     """Run ``cells`` in ``profile``, appending each finished cell's rows to the store.
 
     Parameters
@@ -208,6 +209,10 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
         Measure cells already in the store again.
     progress : bool
         Show the progress bar (stderr).
+    worker_threads : int, optional
+        ``PRTBENCH_THREADS`` / ``LP_NUM_THREADS`` of every Dask worker (default: each
+        worker's share of its host's cores). Not accepted with ``workers=0``: the serial run
+        uses this process's own ``PRTBENCH_THREADS``.
 
     Returns
     -------
@@ -223,6 +228,11 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
 
     if workers is not None and workers < 0:
         raise InvalidInputError(f"--workers {workers}; accepted: 0 (serial, no Dask) or more")
+    check_worker_threads(worker_threads)
+    if worker_threads is not None and workers == 0 and not scheduler:
+        raise InvalidInputError(f"--worker-threads {worker_threads} with --workers 0; accepted: "
+                                f"--worker-threads with Dask workers (the serial run uses "
+                                f"PRTBENCH_THREADS)")
     start = time.perf_counter()
     keyed = _validate(cells, profile, results_path)
     client = connect(scheduler) if scheduler else None  # before anything is written
@@ -257,9 +267,9 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
                 if client is None:
                     from distributed import Client
 
-                    cluster = local_cluster(workers or cores())
+                    cluster = local_cluster(workers or cores(), threads=worker_threads)
                     client = Client(cluster)
-                n_workers = register_setup(client)
+                n_workers = register_setup(client, threads=worker_threads)
                 try:
                     _run_dask(client, todo, profile, n_workers, finish, bar)
                 finally:

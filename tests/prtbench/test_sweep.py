@@ -76,6 +76,9 @@ def test_sweep_file_errors_are_one_line_and_write_nothing(tmp_path, capsys, text
     (["--grid", "sh_bandz=3,4"], ["unknown knob 'sh_bandz'", "sh_bands"]),
     (["--grid", "sh_bands=3,x"], ["sh_bands", "'x'"]),
     (["--workers", "-1"], ["--workers -1", "0 (serial"]),
+    (["--worker-threads", "0"], ["--worker-threads 0", "1..256"]),
+    (["--worker-threads", "1", "--workers", "0"], ["--worker-threads 1 with --workers 0",
+                                                   "PRTBENCH_THREADS"]),
     (["--scheduler", "localhost:8786"], ["--scheduler 'localhost:8786'", "tcp://HOST:PORT"]),
 ])
 def test_cli_grid_errors(tmp_path, capsys, argv, expected):
@@ -287,6 +290,24 @@ def test_existing_scheduler_runs_the_sweep_unchanged(tmp_path):
     assert [c.status for c in outcome.cells] == ["done"] and outcome.workers == 1
     (rows,) = _by_key(tmp_path / "r.sqlite").values()
     assert rows[0].workers == 1 and rows[0].metrics["psnr_masked"] > 10.0
+
+
+def _thread_settings() -> tuple[str, str]:
+    return os.environ["PRTBENCH_THREADS"], os.environ["LP_NUM_THREADS"]
+
+
+def test_worker_threads_fix_every_workers_share_of_the_cores():
+    from distributed import Client
+
+    from prtbench.tradeoff.cluster import cores, local_cluster, register_setup
+
+    # One worker gets every core by default; --worker-threads 1 holds it to one (the
+    # configuration that measures Dask's own scaling, benchmarks/bench_sweep.py).
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        assert register_setup(client) == 1
+        assert list(client.run(_thread_settings).values()) == [(str(cores()),) * 2]
+        assert register_setup(client, threads=1) == 1
+        assert list(client.run(_thread_settings).values()) == [("1", "1")]
 
 
 def test_settle_load_waits_for_the_parallel_phase_to_leave_the_load_average(monkeypatch):
