@@ -336,8 +336,13 @@ COMPARISON = {
     "+1.7 dB). Training lights at held-out views reach 30.7 dB, held-out lights 28.45. Tried "
     "next (scripts/nw_holdout_experiment.py, hash grid only): light_tilt=45 (turns tilted to "
     "other elevations) 27.37; 'night' (a low bright source) as an 8th training light 28.12; "
-    "6000 steps 29.38 (training lights 31.38), still short of SH + 0.5 = 30.20: the rest is "
-    "steps (+0.93 dB from 2000 to 6000) and cleaner targets beyond ~10 min per variant here"))
+    "6000 steps 29.38 (training lights 31.38), still short of SH + 0.5 = 30.20. More steps do "
+    "not close it: 18000 steps 27.04 (training lights 30.49: it overfits the 128 training "
+    "images); less capacity does not either (6000 steps, log2_table 12: 28.76, training "
+    "lights 31.41), nor training on every wavelet (2000 steps, train_terms 384 = 6N^2: 27.69 "
+    "vs 28.45 with 96). Single runs of one seed; on four-animals (table-nw-seeds, quick) the "
+    "indirect PSNR's seed spread is +-1.5 dB, as large as these differences. Next: more "
+    "training views and lights (data, not steps)"))
 def test_hashgrid_beats_vertex_features_on_held_out_lights():
     from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline
 
