@@ -340,9 +340,10 @@ COMPARISON = {
     "not close it: 18000 steps 27.04 (training lights 30.49: it overfits the 128 training "
     "images); less capacity does not either (6000 steps, log2_table 12: 28.76, training "
     "lights 31.41), nor training on every wavelet (2000 steps, train_terms 384 = 6N^2: 27.69 "
-    "vs 28.45 with 96). Single runs of one seed; on four-animals (table-nw-seeds, quick) the "
-    "indirect PSNR's seed spread is +-1.5 dB, as large as these differences. Next: more "
-    "training views and lights (data, not steps)"))
+    "vs 28.45 with 96), nor twice the training views (6000 steps, train_views 128: 28.10, "
+    "training lights 30.73). Single runs of one seed; on four-animals (table-nw-seeds, quick) "
+    "the indirect PSNR's seed spread is +-1.5 dB, as large as these differences: the next "
+    "step is several seeds per setting, which needs a GPU's training time"))
 def test_hashgrid_beats_vertex_features_on_held_out_lights():
     from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline
 
