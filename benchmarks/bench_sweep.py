@@ -57,7 +57,7 @@ def main() -> int:
         _render_references(cells, sweep.profile, prepare_cell)
         print(f"references (shared by both runs): {time.perf_counter() - start:.1f} s", flush=True)
         start = time.perf_counter()
-        _warm_up(cells, sweep.profile, work, run_cells)
+        _warm_up(cells, sweep.profile, work, warm / "references", run_cells)
         print(f"warm-up (one cell per method, serial, untimed): "
               f"{time.perf_counter() - start:.1f} s", flush=True)
         times = {}
@@ -78,8 +78,7 @@ def main() -> int:
             failed = outcome.count("failed")
             busy = sum(c.seconds for c in outcome.cells)
             wall = times[(n, threads)]
-            each = f"{threads} thread(s) each" if threads else "default threads"
-            print(f"{n} worker(s), {each}: {wall:.1f} s wall ({outcome.count('done')} done, "
+            print(f"{n} worker(s), {_threads_label(threads)}: {wall:.1f} s wall ({outcome.count('done')} done, "
                   f"{failed} failed; {busy:.1f} s in cells; worker CPU {cpu:.1f} s = "
                   f"{cpu / wall:.2f} cores busy); load average before "
                   f"{load[0]:.2f}, after {os.getloadavg()[0]:.2f}", flush=True)
@@ -94,7 +93,7 @@ def main() -> int:
     return 0
 
 
-def _warm_up(cells, profile: str, work: Path, run_cells) -> None:
+def _warm_up(cells, profile: str, work: Path, references: Path, run_cells) -> None:
     """One cell per method, serially, into a throwaway cache and store.
 
     Caches outside ``PRTBENCH_CACHE`` (Dr.Jit's compiled kernels on disk, the OS's file cache
@@ -103,7 +102,7 @@ def _warm_up(cells, profile: str, work: Path, run_cells) -> None:
     """
     firsts = list({cell.method: cell for cell in cells}.values())
     cache = work / "cache-warm-up"
-    shutil.copytree(work / "warm" / "references", cache / "references")
+    shutil.copytree(references, cache / "references")
     os.environ["PRTBENCH_CACHE"] = str(cache)
     run_cells(firsts, profile=profile, results_path=work / "warm-up.sqlite", workers=0,
               progress=False)
