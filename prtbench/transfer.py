@@ -16,7 +16,8 @@ never evaluated per ray. A point's M directions are a fixed local pattern rotate
 R_p, so the visibility-weighted sum is formed in the local frame by one matrix product against
 SH values evaluated once per pattern, c_p = π/M · Y_localᵀ v_p, and then rotated to the world
 frame, T_p = D(R_p) c_p, with D built from ZYZ Euler angles (:class:`ShRotation`: O(n³) per
-point, no trigonometry per ray). Chunks of points (rays, trace, SH sums) run on the precompute
+point, no trigonometry per ray). Both run in float32 (the sums in blocks of 256 rays added in
+float64: ~2e-6 relative error at any M, see :func:`_local_sh_tables`). Chunks of points (rays, trace, SH sums) run on the precompute
 threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``, default all cores): embree releases
 the GIL, and since a chunk's rays depend only on its points, every thread count gives the same
 bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every sample's
@@ -48,7 +49,7 @@ if TYPE_CHECKING:
     from .scene import Scene
 
 #: Bump when the estimator changes: it is part of every transfer cache key.
-TRANSFER_VERSION = 1
+TRANSFER_VERSION = 2  # 2: float32 SH products and rotation
 
 #: Rays per chunk: bounds memory (~60 bytes per ray, two chunks per thread in flight) and keeps
 #: chunks small enough to balance the threads. Fixed, so results never depend on threads.
@@ -111,9 +112,12 @@ class RayPattern:
         self.rays_per_point = rays_per_point
         self.n_patterns = N_PATTERNS
         shifts = rng.random((self.n_patterns, 2))
+        # All patterns in one pass: the same element-wise operations as
+        # fibonacci_square(m, shift=s) for each shift, so the same values, in a tenth the time.
+        shifted = np.mod(fibonacci_square(rays_per_point)[None] + shifts[:, None, :], 1.0)
         #: (P, M, 3) float64 local directions of each pattern.
-        self.local = np.stack([cosine_hemisphere(fibonacci_square(rays_per_point, shift=s))
-                               for s in shifts])
+        self.local = cosine_hemisphere(shifted.reshape(-1, 2)).reshape(self.n_patterns,
+                                                                      rays_per_point, 3)
         self.angle_of_point = rng.random(n_points) * 2.0 * np.pi
 
     def frames(self, normals: np.ndarray, sl: slice) -> np.ndarray:
@@ -209,6 +213,9 @@ class ShRotation:
         d_minus.flags.writeable = False  # constants, shared between threads by for_bands
         self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
         self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
+        # float32 copies for float32 coefficients (mixed products would run in float64).
+        self._blocks32 = ([b.astype(np.float32) for b in self.x_plus],
+                          [b.astype(np.float32) for b in self.x_minus])
 
     @staticmethod
     def for_bands(bands: int) -> "ShRotation":
@@ -220,7 +227,8 @@ class ShRotation:
             return
         # e^{imγ} for m = 1 … n−1 by repeated products: two trig calls per point, not n².
         powers = np.cumprod(np.repeat(np.exp(1j * angle)[None, :], self.bands - 1, axis=0), axis=0)
-        cos, sin = np.ascontiguousarray(powers.real), np.ascontiguousarray(powers.imag)
+        cos = np.ascontiguousarray(powers.real, dtype=c.dtype)
+        sin = np.ascontiguousarray(powers.imag, dtype=c.dtype)
         for l in range(1, self.bands):
             # Band l's m = 1 … l are rows l²+l+1 … l²+2l and their partners −m run from
             # l²+l−1 down to l²: slices, not gathers (per-point cost of the rotation).
@@ -243,14 +251,22 @@ class ShRotation:
 
         Parameters
         ----------
-        coeffs_t : ndarray, shape (n², N), float64, C-contiguous
-            Column p holds point p's coefficients; overwritten with the rotated ones.
+        coeffs_t : ndarray, shape (n², N), float64 or float32, C-contiguous
+            Column p holds point p's coefficients; overwritten with the rotated ones. The
+            rotation runs in its precision (angles are computed in float64 either way).
         world_from_local : ndarray, shape (N, 3, 3)
 
         Returns
         -------
         ndarray, shape (n², N): ``coeffs_t`` itself.
         """
+        if coeffs_t.dtype == np.float32 and coeffs_t.shape[1] == 1:
+            # One column would make the band products BLAS gemv calls, whose float32 sums
+            # round differently from gemm's: rotate it as two equal columns instead.
+            pair = np.repeat(coeffs_t, 2, axis=1)
+            self.rotate_columns(pair, np.repeat(world_from_local, 2, axis=0))
+            coeffs_t[...] = pair[:, :1]
+            return coeffs_t
         r = world_from_local
         b = np.arccos(np.clip(r[:, 2, 2], -1.0, 1.0))
         sin_b = np.hypot(r[:, 0, 2], r[:, 1, 2])
@@ -259,10 +275,12 @@ class ShRotation:
                      np.where(r[:, 2, 2] > 0, np.arctan2(r[:, 1, 0], r[:, 0, 0]),
                               np.arctan2(-r[:, 1, 0], r[:, 1, 1])))
         c_ang = np.where(regular, np.arctan2(r[:, 2, 1], -r[:, 2, 0]), 0.0)
+        x_plus, x_minus = (self._blocks32 if coeffs_t.dtype == np.float32
+                           else (self.x_plus, self.x_minus))
         self._z(coeffs_t, c_ang)
-        self._x(coeffs_t, self.x_plus)
+        self._x(coeffs_t, x_plus)
         self._z(coeffs_t, b)
-        self._x(coeffs_t, self.x_minus)
+        self._x(coeffs_t, x_minus)
         self._z(coeffs_t, a)
         return coeffs_t
 
@@ -275,47 +293,86 @@ class ShRotation:
 _rotation_for_bands = lru_cache(maxsize=16)(ShRotation)
 
 
-def _project(visible: np.ndarray, local_sh: np.ndarray, pattern: RayPattern, sl: slice,
-             scratch: Scratch, *, scale: float) -> np.ndarray:
+def _project(visible: np.ndarray, local_sh: np.ndarray, sl: slice, scratch: Scratch, *,
+             scale: float) -> np.ndarray:
     """``scale`` · Σ_j Y_i(ω_j) V_j per point in its local frame, coefficient-major.
 
-    One (rows × M) @ (M × n²) product per pattern, over the points using it. When the chunk
-    starts at pattern 0 and holds whole rounds of patterns (every chunk but a ragged last
-    one), the products are one stacked matmul call: numpy hands BLAS the same per-pattern
-    products, so the bits are those of the loop, with 3 numpy calls instead of 4 per pattern
-    (fewer calls also means fewer GIL hand-overs between the tracing threads). The scaling
-    writes the products straight into the (n², n) layout :meth:`ShRotation.rotate_columns`
+    One (rows × K) @ (K × n²) product per pattern and block of K rays, over the points using
+    the pattern, all in one stacked matmul call; the blocks' partial sums are added in
+    float64 (see :func:`_local_sh_tables`). Point ``sl.start + i`` uses pattern
+    ``(sl.start + i) % P``; a chunk that does not start at pattern 0 or hold whole rounds of
+    patterns (a ragged last chunk, or a caller's ``chunk_points``) is padded with
+    zero-visibility rows to whole rounds, and the rays to whole blocks. Every chunk thus
+    takes the same BLAS path: in float32 a separate per-pattern loop rounded ~0.5 % of the
+    coefficients differently, and the bits must not depend on the chunking. The scaling
+    writes the sums straight into the (n², n) layout :meth:`ShRotation.rotate_columns`
     works in (no separate transpose copy).
 
     Parameters
     ----------
     visible : ndarray, shape (n, M), bool
         Visibility of the rays of the points in ``sl``.
-    local_sh : ndarray, shape (P, M, n²)
-        SH of each pattern's local directions.
+    local_sh : ndarray, shape (P, B, K, n²), float32 or float64
+        SH of each pattern's local directions in B blocks of K (zero past M); the products
+        run in its precision (the weights are 0/1, exact in either).
 
     Returns
     -------
-    ndarray, shape (n², n), float64, C-contiguous (a new array)
+    ndarray, shape (n², n), ``local_sh``'s dtype, C-contiguous (a new array)
     """
     n, m = visible.shape
-    p, n2 = len(local_sh), local_sh.shape[-1]
-    local_t = np.empty((n2, n))
-    if n % p == 0 and sl.start % p == 0:
-        rows = n // p
-        weights = scratch.get("weights", (p, rows, m), np.float64)
-        np.copyto(weights, visible.reshape(rows, p, m).transpose(1, 0, 2))  # [k] = rows k::p
-        products = np.matmul(weights, local_sh, out=scratch.get("products", (p, rows, n2),
-                                                                np.float64))
-        # point r·p + k is products[k, r]: (n², rows, p) is local_t's own memory order.
-        np.multiply(products.transpose(2, 1, 0), scale, out=local_t.reshape(n2, rows, p))
+    p, blocks, k, n2 = local_sh.shape
+    lead = sl.start % p  # padding rows before the chunk's first point
+    # At least 2 rows: with 1, numpy calls BLAS gemv, whose float32 sums round differently.
+    rows = max(2, -(-(lead + n) // p))
+    exact = lead == 0 and n == rows * p and m == blocks * k  # every default-size chunk
+    source = visible
+    if not exact:
+        source = np.zeros((rows * p, blocks * k), dtype=bool)
+        source[lead:lead + n, :m] = visible
+    weights = scratch.get("weights", (p, blocks, rows, k), local_sh.dtype)
+    # [pattern, block, r] = padded point r·p + pattern, rays of that block
+    np.copyto(weights, source.reshape(rows, p, blocks, k).transpose(1, 2, 0, 3))
+    products = np.matmul(weights, local_sh, out=scratch.get("products", (p, blocks, rows, n2),
+                                                            local_sh.dtype))
+    sums = products[:, 0] if blocks == 1 else products.sum(axis=1, dtype=np.float64)
+    # padded point r·p + k is sums[k, r]: (n², rows, p) is local_t's own memory order.
+    local_t = np.empty((n2, rows * p), dtype=local_sh.dtype)
+    np.multiply(sums.transpose(2, 1, 0), scale, out=local_t.reshape(n2, rows, p),
+                casting="same_kind")
+    if lead == 0 and n == rows * p:
         return local_t
-    for k, rows in pattern.groups(sl):
-        v = visible[rows]
-        weights = scratch.get("weights", v.shape, np.float64)
-        np.copyto(weights, v)
-        np.multiply((weights @ local_sh[k]).T, scale, out=local_t[:, rows])
-    return local_t
+    return np.ascontiguousarray(local_t[:, lead:lead + n])
+
+
+#: Rays per float32 partial sum in :func:`_project` (their float64 total bounds the rounding).
+SUM_BLOCK = 256
+
+
+def _local_sh_tables(pattern: RayPattern, bands: int) -> np.ndarray:
+    """(P, B, K, n²) SH of each pattern's local directions, in blocks for :func:`_project`.
+
+    float32 products (and rotation): twice the BLAS rate on the largest per-ray cost at high
+    bands and half the memory traffic. A float32 sum of M rays rounds by up to ~M·2⁻²⁴
+    (measured 2.5e-5 relative at M = 4096), so the rays go in blocks of at most
+    :data:`SUM_BLOCK`, zero-padded, whose float32 sums are added in float64: measured
+    2e-6 relative to the float64 per-ray estimator for M = 256 … 16384 on ``plants``, far
+    below the 1/√M sampling noise. One
+    band stays float64 and unblocked: its single column makes the products BLAS gemv calls,
+    whose float32 sums would depend on the chunk's row count.
+    """
+    local = pattern.local
+    n2 = bands * bands
+    # One evaluation for all patterns (eval_sh is per direction: same values).
+    y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
+    m = y.shape[1]
+    if bands == 1:
+        return y[:, None]
+    k = min(m, SUM_BLOCK)
+    blocks = -(-m // k)
+    tables = np.zeros((len(local), blocks * k, n2), dtype=np.float32)
+    tables[:, :m] = y
+    return tables.reshape(len(local), blocks, k, n2)
 
 
 def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *, bands: int,
@@ -324,7 +381,10 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     m = rays_per_point
     n2 = bands * bands
     pattern = RayPattern(len(points), m, seed)
-    origins_all = offset_origins(points, normals, diagonal=tracer.diagonal).astype(np.float32)
+    # Origins padded to 16-byte rows: repeating a point's origin for its M rays then copies
+    # 16-byte records, ~8x faster than 12-byte ones (the tracer takes the strided (N, 3) view).
+    origins_all = np.zeros((len(points), 4), dtype=np.float32)
+    origins_all[:, :3] = offset_origins(points, normals, diagonal=tracer.diagonal)
     transfer = np.zeros((len(points), n2), dtype=np.float64)
     stderr = np.zeros((len(points), n2), dtype=np.float64) if with_stderr else None
     if not chunks:
@@ -333,14 +393,11 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
     tables_lock = threading.Lock()
 
     def sh_tables() -> tuple[ShRotation, np.ndarray]:
-        """(rotation, (P, M, n²) SH of each local pattern), built by the first chunk done
+        """(rotation, :func:`_local_sh_tables`), built by the first chunk done
         tracing: the other threads' tracing hides the cost."""
         with tables_lock:
             if not tables:
-                # One evaluation for all patterns (eval_sh is per direction: same values).
-                local = pattern.local
-                y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
-                tables.extend([ShRotation.for_bands(bands), y])
+                tables.extend([ShRotation.for_bands(bands), _local_sh_tables(pattern, bands)])
         return tables[0], tables[1]
 
     scratch = Scratch()  # per-thread ray buffers: no page faults for every chunk's rays
@@ -350,8 +407,8 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
         frames = pattern.frames(normals[sl], sl)
         dirs = pattern.world_directions(frames, sl,
                                         out=scratch.get("dirs", (n, m, 3), np.float32))
-        origins = repeat_rows(origins_all[sl], m, out=scratch.get("origins", (n * m, 3),
-                                                                  np.float32))
+        origins = repeat_rows(origins_all[sl], m, out=scratch.get("origins", (n * m, 4),
+                                                                  np.float32))[:, :3]
         if not visibility:  # the unshadowed transfer: V = 1, the same rays and estimator
             return frames, dirs, np.ones((n, m), dtype=bool)
         return frames, dirs, ~tracer.occluded(origins, dirs.reshape(-1, 3)).reshape(-1, m)
@@ -374,7 +431,7 @@ def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *,
                 error[s:s + len(v)] = np.sqrt(var / m)
             return mean, error
         rotate, local_sh = sh_tables()
-        local_t = _project(visible, local_sh, pattern, sl, scratch, scale=np.pi / m)
+        local_t = _project(visible, local_sh, sl, scratch, scale=np.pi / m)
         return rotate.rotate_columns(local_t, frames.transpose(0, 2, 1)).T, None
 
     # Chunks run on the precompute threads (embree and numpy's large operations release the
@@ -413,7 +470,9 @@ def _compute(scene, points, normals, *, bands, rays_per_point, seed, chunk_point
             out["stderr"] = e.astype(np.float32)
         return out
 
-    key = _transfer_key(kind, scene, p, n, bands, rays_per_point, seed, visibility)
+    # Without the cache the key is never read: skip hashing the scene and points.
+    key = (_transfer_key(kind, scene, p, n, bands, rays_per_point, seed, visibility)
+           if use_cache else "uncached")
     return cached_arrays(kind, key, compute, use_cache=use_cache)
 
 

@@ -166,32 +166,41 @@ def test_results_do_not_depend_on_chunking_and_follow_the_seed():
     assert a.dtype == np.float32 and a.shape == (len(positions), 9)
 
 
-def test_stacked_projection_gives_the_bits_of_the_per_pattern_loop():
-    # Chunks of whole rounds of the 16 patterns take one stacked matmul; 40-point chunks
-    # (not a multiple of 16) take the per-pattern loop: the two paths must agree bit for bit.
+def test_padded_chunks_give_the_bits_of_whole_rounds_of_patterns():
+    # 32-point chunks hold whole rounds of the 16 patterns; 40-point chunks (and the ragged
+    # 8-point tail) are padded to whole rounds with zero-visibility rows. Both take one
+    # stacked float32 matmul per chunk and must agree bit for bit; rays beyond SUM_BLOCK
+    # go in blocks (M = 300: two blocks, the second zero-padded), also bit for bit.
     from prtbench import transfer as tr
 
     scene = get_scene("sphere-over-plane", sphere_segments=16, plane_subdivisions=4)
     positions, normals, _, _ = scene.merged()
     assert len(positions) >= 139
     tracer = Tracer.from_scene(scene)
-    calls = []
     stacked = np.matmul
+    for rays, blocks in ((48, 1), (300, 2)):
+        calls = []
 
-    def counting(*args, **kwargs):
-        calls.append(np.shape(args[0]))
-        return stacked(*args, **kwargs)
+        def counting(*args, **kwargs):
+            if np.ndim(args[0]) == 4:  # the projection's (not the ray directions')
+                calls.append((np.shape(args[0]), np.asarray(args[0]).dtype))
+            return stacked(*args, **kwargs)
 
-    kw = dict(bands=6, rays_per_point=48, use_cache=False, progress=False, tracer=tracer)
-    loop = compute_transfer(scene, positions[:128], normals[:128], chunk_points=40, **kw)
-    try:
-        tr.np.matmul = counting
-        fast = compute_transfer(scene, positions[:128], normals[:128], chunk_points=32, **kw)
-    finally:
-        tr.np.matmul = stacked
-    assert calls.count((16, 2, 48)) == 4  # every chunk of 32 points took the stacked path
-    np.testing.assert_array_equal(fast, loop)
-    assert np.abs(fast).max() > 0.1
+        kw = dict(bands=6, rays_per_point=rays, use_cache=False, progress=False, tracer=tracer)
+        whole = compute_transfer(scene, positions[:128], normals[:128], chunk_points=32, **kw)
+        try:
+            tr.np.matmul = counting
+            padded = compute_transfer(scene, positions[:128], normals[:128], chunk_points=40,
+                                      **kw)
+        finally:
+            tr.np.matmul = stacked
+        k = min(rays, tr.SUM_BLOCK)
+        # chunks 0-40, 40-80, 80-120 and 120-128: 3, 3, 3 and 1 -> 2 rows per pattern
+        # (in any order: the chunks run on the precompute threads)
+        expected = [((16, blocks, r, k), np.dtype(np.float32)) for r in (2, 3, 3, 3)]
+        assert sorted(calls, key=lambda c: c[0]) == expected, calls
+        np.testing.assert_array_equal(padded, whole)
+        assert np.abs(padded).max() > 0.1
 
 
 def test_blas_thread_count_is_restored_after_the_loop():
