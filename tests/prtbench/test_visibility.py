@@ -32,8 +32,9 @@ def test_unshadowed_transfer_below_the_sphere_is_the_unoccluded_constant():
     kw = dict(bands=3, rays_per_point=1024, use_cache=False, progress=False)
     shadowed = compute_transfer(scene, BELOW, UP, **kw)
     unshadowed = compute_transfer(scene, BELOW, UP, visibility=False, **kw)
-    # T_0 = π/M Σ_j Y_0 = π / (2√π) = √π / 2 for every M: no ray is blocked.
-    assert unshadowed[0, 0] == pytest.approx(math.sqrt(math.pi) / 2, rel=1e-6)
+    # T_0 = π/M Σ_j Y_0 = π / (2√π) = √π / 2 for every M: no ray is blocked. (The local sums
+    # are float32 over blocks of 256 rays: measured 1.7e-6 relative here, hence 4e-6.)
+    assert unshadowed[0, 0] == pytest.approx(math.sqrt(math.pi) / 2, rel=4e-6)
     # The sphere blocks (r/h)² = 1/4 of the cosine-weighted hemisphere.
     assert shadowed[0, 0] == pytest.approx(0.75 * math.sqrt(math.pi) / 2, abs=0.02)
     # Exactly the transfer of the same point where nothing occludes (same rays, same estimator).
