@@ -171,7 +171,7 @@ class FactoredBrdf(Method):
     """Factored BRDF (J separable terms), J SH transfer vectors per vertex, view per vertex."""
 
     Config = FactoredBrdfConfig
-    precompute_version = "2"  # 2: the s = 0 Phong lobe is a hemisphere about r
+    precompute_version = "3"  # 2: the s = 0 Phong lobe is a hemisphere about r; 3: one-thread SVD
     summary = ("Factored BRDF for changing view: J SVD terms g_j(ωo)·h_j(ωi), J transfer "
                "vectors per vertex")
     paper = ("Wang, Tran and Luebke 2004, All-Frequency Relighting of Non-Diffuse Objects using "

@@ -139,7 +139,22 @@ class FactoredBrdf:
 
 
 def _weighted_svd(a: np.ndarray, *, terms: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(σ up to the numerical rank, U (m, terms), V (n, terms)) of a dense (m, n) matrix."""
+    """(σ up to the numerical rank, U (m, terms), V (n, terms)) of a dense (m, n) matrix.
+
+    The Phong lobe's symmetry makes singular values come in equal pairs, whose singular
+    vectors are any rotation within the pair: a J that cuts through a pair keeps whichever
+    one LAPACK returns, and multi-threaded OpenBLAS returns a different one for a different
+    thread count (a sweep worker holds BLAS to one thread, a serial run does not: 0.2 dB
+    apart at J = 8 on plants). The factorisation therefore runs on one BLAS thread.
+    """
+    from prtbench.parallel import single_threaded_blas
+
+    with single_threaded_blas():
+        return _weighted_svd_one_thread(a, terms=terms)
+
+
+def _weighted_svd_one_thread(a: np.ndarray, *, terms: int
+                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m, n = a.shape
     if a.size <= _DENSE_SVD_VALUES:
         u, s, vt = np.linalg.svd(a, full_matrices=False)

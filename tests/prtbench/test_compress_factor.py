@@ -108,3 +108,28 @@ def test_bilinear_lookup_reads_texel_centres_wraps_phi_and_clamps_theta():
     got = factor.bilinear_lookup(table, d, grid)
     assert np.allclose(got[0], 0.5 * (table[:, 1, 0] + table[:, 1, 7]))
     assert np.allclose(got[1], 0.5 * (table[:, 3, 0] + table[:, 3, 7]))
+
+
+def test_factors_do_not_depend_on_the_blas_thread_count():
+    # The Phong lobe's equal singular-value pairs leave the singular vectors free to rotate
+    # within a pair; multi-threaded OpenBLAS picks another rotation than one thread (U and V
+    # differ by ~0.1 on this grid), so a 2-worker sweep (one BLAS thread each) and a serial
+    # run would store different factors. factor_brdf runs the SVD on one thread.
+    from prtbench.parallel import _openblas_threads
+
+    threads = _openblas_threads()
+    if threads is None:
+        pytest.skip("numpy is not linked against its bundled OpenBLAS")
+    get, put = threads
+    before = get()
+    tables = []
+    try:
+        for count in (1, 2):
+            put(count)
+            f = factor_brdf(KD, KS, 20.0, terms=8, **MEDIUM)
+            tables.append((f.outgoing, f.incoming))
+            assert get() == count  # restored afterwards
+    finally:
+        put(before)
+    np.testing.assert_array_equal(tables[0][0], tables[1][0])
+    np.testing.assert_array_equal(tables[0][1], tables[1][1])
