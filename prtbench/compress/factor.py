@@ -144,7 +144,7 @@ def _weighted_svd(a: np.ndarray, *, terms: int) -> tuple[np.ndarray, np.ndarray,
     The Phong lobe's symmetry makes singular values come in equal pairs, whose singular
     vectors are any rotation within the pair: a J that cuts through a pair keeps whichever
     one LAPACK returns, and multi-threaded OpenBLAS returns a different one for a different
-    thread count (a sweep worker holds BLAS to one thread, a serial run does not: 0.2 dB
+    thread count (a sweep worker holds BLAS to one thread, a serial run does not: 0.05 dB
     apart at J = 8 on plants). The factorisation therefore runs on one BLAS thread.
     """
     from prtbench.parallel import single_threaded_blas
