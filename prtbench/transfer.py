@@ -17,8 +17,8 @@ R_p, so the visibility-weighted sum is formed in the local frame by one matrix p
 SH values evaluated once per pattern, c_p = π/M · Y_localᵀ v_p, and then rotated to the world
 frame, T_p = D(R_p) c_p, with D built from ZYZ Euler angles (:class:`ShRotation`: O(n³) per
 point, no trigonometry per ray). Both run in float32 (the sums in blocks of 256 rays added in
-float64: ~2e-6 relative error at any M, see :func:`_local_sh_tables`). Chunks of points (rays, trace, SH sums) run on the precompute
-threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``, default all cores): embree releases
+float64: ~2e-6 relative error at any M, see :func:`_local_sh_tables`). Chunks of points (rays,
+trace, SH sums) run on the precompute threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``, default all cores): embree releases
 the GIL, and since a chunk's rays depend only on its points, every thread count gives the same
 bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every sample's
 square); both give the same transfer up to rounding.
@@ -293,6 +293,10 @@ class ShRotation:
 _rotation_for_bands = lru_cache(maxsize=16)(ShRotation)
 
 
+#: Rays per float32 partial sum in :func:`_project` (their float64 total bounds the rounding).
+SUM_BLOCK = 256
+
+
 def _project(visible: np.ndarray, local_sh: np.ndarray, sl: slice, scratch: Scratch, *,
              scale: float) -> np.ndarray:
     """``scale`` · Σ_j Y_i(ω_j) V_j per point in its local frame, coefficient-major.
@@ -325,9 +329,9 @@ def _project(visible: np.ndarray, local_sh: np.ndarray, sl: slice, scratch: Scra
     lead = sl.start % p  # padding rows before the chunk's first point
     # At least 2 rows: with 1, numpy calls BLAS gemv, whose float32 sums round differently.
     rows = max(2, -(-(lead + n) // p))
-    exact = lead == 0 and n == rows * p and m == blocks * k  # every default-size chunk
+    whole_rows = lead == 0 and n == rows * p  # every default-size chunk
     source = visible
-    if not exact:
+    if not (whole_rows and m == blocks * k):
         source = np.zeros((rows * p, blocks * k), dtype=bool)
         source[lead:lead + n, :m] = visible
     weights = scratch.get("weights", (p, blocks, rows, k), local_sh.dtype)
@@ -340,13 +344,9 @@ def _project(visible: np.ndarray, local_sh: np.ndarray, sl: slice, scratch: Scra
     local_t = np.empty((n2, rows * p), dtype=local_sh.dtype)
     np.multiply(sums.transpose(2, 1, 0), scale, out=local_t.reshape(n2, rows, p),
                 casting="same_kind")
-    if lead == 0 and n == rows * p:
+    if whole_rows:
         return local_t
     return np.ascontiguousarray(local_t[:, lead:lead + n])
-
-
-#: Rays per float32 partial sum in :func:`_project` (their float64 total bounds the rounding).
-SUM_BLOCK = 256
 
 
 def _local_sh_tables(pattern: RayPattern, bands: int) -> np.ndarray:
@@ -357,9 +357,9 @@ def _local_sh_tables(pattern: RayPattern, bands: int) -> np.ndarray:
     (measured 2.5e-5 relative at M = 4096), so the rays go in blocks of at most
     :data:`SUM_BLOCK`, zero-padded, whose float32 sums are added in float64: measured
     2e-6 relative to the float64 per-ray estimator for M = 256 … 16384 on ``plants``, far
-    below the 1/√M sampling noise. One
-    band stays float64 and unblocked: its single column makes the products BLAS gemv calls,
-    whose float32 sums would depend on the chunk's row count.
+    below the 1/√M sampling noise. One band stays float64 and unblocked: its single column
+    makes the products BLAS gemv calls, whose float32 sums would depend on the chunk's row
+    count.
     """
     local = pattern.local
     n2 = bands * bands

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..parallel import single_threaded_blas
 from ..sh import phong_lobe
 
 #: Singular values below this fraction of the largest count as zero (the numerical rank):
@@ -138,6 +139,7 @@ class FactoredBrdf:
         return np.einsum("jco,ji->oci", g, h)
 
 
+@single_threaded_blas()
 def _weighted_svd(a: np.ndarray, *, terms: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(σ up to the numerical rank, U (m, terms), V (n, terms)) of a dense (m, n) matrix.
 
@@ -147,14 +149,6 @@ def _weighted_svd(a: np.ndarray, *, terms: int) -> tuple[np.ndarray, np.ndarray,
     thread count (a sweep worker holds BLAS to one thread, a serial run does not: 0.05 dB
     apart at J = 8 on plants). The factorisation therefore runs on one BLAS thread.
     """
-    from prtbench.parallel import single_threaded_blas
-
-    with single_threaded_blas():
-        return _weighted_svd_one_thread(a, terms=terms)
-
-
-def _weighted_svd_one_thread(a: np.ndarray, *, terms: int
-                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m, n = a.shape
     if a.size <= _DENSE_SVD_VALUES:
         u, s, vt = np.linalg.svd(a, full_matrices=False)
