@@ -8,8 +8,8 @@ Estimator. Rays are cosine-weighted about the normal, so T_i ≈ π/M Σ_j Y_i(�
 local directions come from a Fibonacci lattice in the unit square, Cranley–Patterson shifted at
 random and mapped to the hemisphere by Malley's method (stratified, and unbiased over the
 shift). There are 16 such independently shifted patterns; point i uses pattern i mod 16, spun
-by its own random angle about the normal (all seeded and per point, so results depend neither
-on chunking nor on the band count: fewer bands are exactly a truncation of more).
+by its own random angle about the normal (all seeded and per point, so the rays depend neither
+on chunking nor on the band count: fewer bands are a truncation of more, up to rounding).
 
 Speed. Per-ray numpy work is what limits throughput (Embree traces a ray in ~0.1 µs), so SH are
 never evaluated per ray. A point's M directions are a fixed local pattern rotated by its frame
@@ -18,10 +18,11 @@ SH values evaluated once per pattern, c_p = π/M · Y_localᵀ v_p, and then rot
 frame, T_p = D(R_p) c_p, with D built from ZYZ Euler angles (:class:`ShRotation`: O(n³) per
 point, no trigonometry per ray). Both run in float32 (the sums in blocks of 256 rays added in
 float64: ~2e-6 relative error at any M, see :func:`_local_sh_tables`). Chunks of points (rays,
-trace, SH sums) run on the precompute threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``, default all cores): embree releases
-the GIL, and since a chunk's rays depend only on its points, every thread count gives the same
-bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every sample's
-square); both give the same transfer up to rounding.
+trace, SH sums) run on the precompute threads of :mod:`prtbench.parallel` (``PRTBENCH_THREADS``,
+default all cores): embree releases the GIL, and since a chunk's rays depend only on its points
+and the chunks only on the point and ray counts (:func:`_chunks`), every thread count gives the
+same bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every
+sample's square); both give the same transfer up to rounding.
 
 Interreflected transfer (Sloan's bounces) is in :func:`compute_bounce_transfer`.
 """
@@ -43,17 +44,24 @@ from .parallel import Scratch, map_chunks, repeat_rows
 from .parallel import _openblas_threads  # noqa: F401  (re-exported for users)
 from .parallel import single_threaded_blas as _single_threaded_blas
 from .raytrace import Tracer, offset_origins
-from .sh import eval_sh, sphere_quadrature
+from .sh import eval_sh, eval_sh_coefficient_major, sphere_quadrature
 
 if TYPE_CHECKING:
     from .scene import Scene
 
 #: Bump when the estimator changes: it is part of every transfer cache key.
-TRANSFER_VERSION = 2  # 2: float32 SH products and rotation
+TRANSFER_VERSION = 3  # 2: float32 SH products and rotation; 3: a shorter first chunk
 
 #: Rays per chunk: bounds memory (~60 bytes per ray, two chunks per thread in flight) and keeps
 #: chunks small enough to balance the threads. Fixed, so results never depend on threads.
 MAX_RAYS_PER_CHUNK = 1 << 18
+
+#: Size of the first default chunk relative to the others. Equal chunks keep the threads in
+#: lockstep: all finish tracing together and then contend for the GIL in their numpy SH
+#: sums (and wait for the one building the SH tables), leaving cores idle. A short first
+#: chunk staggers them, so that one thread's sums run while the others trace (measured on 2
+#: cores: the rotation 0.9 ms per chunk instead of 1.8, and the tables' wait gone).
+LEAD_CHUNK_FRACTION = 0.5
 
 #: Distinct randomly shifted direction patterns (SH tables are evaluated once per pattern).
 N_PATTERNS = 16
@@ -166,12 +174,22 @@ def _check_inputs(points: np.ndarray, normals: np.ndarray, bands: int,
 
 
 def _chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> list[slice]:
-    if chunk_points is None:
-        chunk_points = max(1, MAX_RAYS_PER_CHUNK // rays_per_point)
-    if int(chunk_points) != chunk_points or chunk_points < 1:
-        raise InvalidInputError(f"chunk_points={chunk_points!r}; accepted: integers >= 1")
-    step = int(chunk_points)
-    return [slice(s, min(s + step, n_points)) for s in range(0, n_points, step)]
+    """Consecutive point slices: ``chunk_points`` each, or by default ~:data:`MAX_RAYS_PER_CHUNK`
+    rays each after a shorter first one (:data:`LEAD_CHUNK_FRACTION`; one chunk if all fit).
+
+    The boundaries depend only on the point and ray counts, never on the thread count.
+    """
+    if chunk_points is not None:
+        if int(chunk_points) != chunk_points or chunk_points < 1:
+            raise InvalidInputError(f"chunk_points={chunk_points!r}; accepted: integers >= 1")
+        step = int(chunk_points)
+        return [slice(s, min(s + step, n_points)) for s in range(0, n_points, step)]
+    step = max(1, MAX_RAYS_PER_CHUNK // rays_per_point)
+    if n_points <= step:  # one chunk: its rays are split over the threads by the tracer
+        return [slice(0, n_points)] if n_points else []
+    lead = max(1, int(step * LEAD_CHUNK_FRACTION))
+    return [slice(0, lead)] + [slice(s, min(s + step, n_points))
+                               for s in range(lead, n_points, step)]
 
 
 def _progress(total: int, desc: str, enabled: bool):
@@ -306,11 +324,13 @@ def _project(visible: np.ndarray, local_sh: np.ndarray, sl: slice, scratch: Scra
     float64 (see :func:`_local_sh_tables`). Point ``sl.start + i`` uses pattern
     ``(sl.start + i) % P``; a chunk that does not start at pattern 0 or hold whole rounds of
     patterns (a ragged last chunk, or a caller's ``chunk_points``) is padded with
-    zero-visibility rows to whole rounds, and the rays to whole blocks. Every chunk thus
-    takes the same BLAS path: in float32 a separate per-pattern loop rounded ~0.5 % of the
-    coefficients differently, and the bits must not depend on the chunking. The scaling
-    writes the sums straight into the (n², n) layout :meth:`ShRotation.rotate_columns`
-    works in (no separate transpose copy).
+    zero-visibility rows to whole rounds, and the rays to whole blocks, so that every chunk
+    takes one stacked product (in float32 a separate per-pattern loop rounded ~0.5 % of the
+    coefficients differently). The bits can still depend on the chunk's size: OpenBLAS sums
+    small products (M·N·K up to about 10⁶ on AVX-512 machines) in another kernel, in another
+    order. The chunking depends only on the point and ray counts, never on the threads. The
+    scaling writes the sums straight into the (n², n) layout
+    :meth:`ShRotation.rotate_columns` works in (no separate transpose copy).
 
     Parameters
     ----------
@@ -362,17 +382,19 @@ def _local_sh_tables(pattern: RayPattern, bands: int) -> np.ndarray:
     count.
     """
     local = pattern.local
+    n_patterns, m = local.shape[:2]
     n2 = bands * bands
-    # One evaluation for all patterns (eval_sh is per direction: same values).
-    y = eval_sh(local.reshape(-1, 3), bands).reshape(len(local), -1, n2)
-    m = y.shape[1]
+    # One evaluation for all patterns (per direction: the same values), coefficient-major:
+    # the faster layout to evaluate, transposed by the copy into the tables.
+    y = eval_sh_coefficient_major(local.reshape(-1, 3), bands)
     if bands == 1:
-        return y[:, None]
+        return y.reshape(n_patterns, 1, m, 1)
     k = min(m, SUM_BLOCK)
     blocks = -(-m // k)
-    tables = np.zeros((len(local), blocks * k, n2), dtype=np.float32)
-    tables[:, :m] = y
-    return tables.reshape(len(local), blocks, k, n2)
+    tables = np.zeros((n_patterns, blocks * k, n2), dtype=np.float32)
+    # Rounded to float32 before the transposing copy: the same values, half the bytes moved.
+    tables[:, :m] = y.astype(np.float32).reshape(n2, n_patterns, m).transpose(1, 2, 0)
+    return tables.reshape(n_patterns, blocks, k, n2)
 
 
 def _transfer_chunks(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *, bands: int,

@@ -196,7 +196,7 @@ def test_transfer_with_the_default_chunks_is_identical(monkeypatch, scene):
     positions, normals, _, _ = scene.merged()
     rng = np.random.default_rng(0)
     pick = rng.choice(len(positions), 1200)
-    # 1200 points x 512 rays = 600k rays: three default chunks of 2^18 rays.
+    # 1200 points x 512 rays = 600k rays: three default chunks (2^17, 2^18 and the rest).
     _check(_runs(monkeypatch, scene, lambda tracer: compute_transfer(
         scene, positions[pick], normals[pick], bands=3, rays_per_point=512, use_cache=False,
         progress=False, tracer=tracer)))

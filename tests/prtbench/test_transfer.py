@@ -203,6 +203,28 @@ def test_padded_chunks_give_the_bits_of_whole_rounds_of_patterns():
         assert np.abs(padded).max() > 0.1
 
 
+def test_default_chunks_start_short_and_cover_every_point_once():
+    # The first default chunk is half a chunk, so that the precompute threads do not trace in
+    # lockstep (they would all reach their numpy SH sums together); a job that fits one chunk
+    # stays one chunk (the tracer then splits its rays over the threads). Nothing here
+    # depends on the thread count.
+    from prtbench.transfer import LEAD_CHUNK_FRACTION, MAX_RAYS_PER_CHUNK, _chunks
+
+    step = MAX_RAYS_PER_CHUNK // 256
+    sizes = [c.stop - c.start for c in _chunks(4 * step, 256, None)]
+    assert sizes == [int(step * LEAD_CHUNK_FRACTION)] + [step] * 3 + [step - sizes[0]]
+    assert LEAD_CHUNK_FRACTION < 1
+    for n_points in (0, 1, step - 1, step, step + 1, 3 * step + 5):
+        chunks = _chunks(n_points, 256, None)
+        covered = np.concatenate([np.arange(c.start, c.stop) for c in chunks] + [[]])
+        np.testing.assert_array_equal(covered, np.arange(n_points))
+        if n_points <= step:
+            assert len(chunks) == min(n_points, 1)
+        assert max((c.stop - c.start for c in chunks), default=0) <= step
+    # An explicit chunk size is taken as it is.
+    assert [c.stop - c.start for c in _chunks(10, 256, 4)] == [4, 4, 2]
+
+
 def test_blas_thread_count_is_restored_after_the_loop():
     from prtbench.transfer import _openblas_threads
 
