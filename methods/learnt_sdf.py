@@ -47,7 +47,7 @@ from methods import SHADER_DIR
 from methods.learnt.config import LearntConfig, check_training_memory
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
-MODEL_VERSION = 1
+MODEL_VERSION = 2  # 2: trained under MKL strict reproducibility (prtbench/__init__.py)
 
 #: Knobs that change the trained network (the others only change how it is evaluated).
 TRAINING_KNOBS = (

@@ -41,7 +41,7 @@ from .sdf.nodes import Codegen, Points, Primitive, _box_distance, glsl_float, gl
 SIZES = {"small": (32, 2), "large": (64, 2)}
 
 #: Bump when the data, the architecture or the training change (part of the cache key).
-NEURAL_SDF_VERSION = 1
+NEURAL_SDF_VERSION = 2  # 2: trained under MKL strict reproducibility (prtbench/__init__.py)
 
 #: Box padding around the mesh, as a fraction of its largest half extent.
 PADDING = 0.1

@@ -36,7 +36,7 @@ import numpy as np
 from prtbench.cache import cached_arrays, content_key
 
 #: Bump when training changes for the same knobs (invalidates cached models).
-MODEL_VERSION = 2
+MODEL_VERSION = 3  # 3: trained under MKL strict reproducibility (prtbench/__init__.py)
 #: Knobs that change the trained model (beyond the data's, see data.DATA_KNOBS).
 TRAIN_KNOBS = ("features", "levels", "features_per_level", "base_resolution", "per_level_scale",
                "log2_table", "vertex_features", "feature_dim", "hidden", "layers",

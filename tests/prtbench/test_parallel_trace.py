@@ -293,3 +293,37 @@ def test_glossy_transfer_matrices_are_identical_on_any_thread_count(monkeypatch,
     assert np.abs(out["1"]).max() > 0
     for count in THREAD_COUNTS[1:]:
         np.testing.assert_array_equal(out["1"], out[count], err_msg=f"PRTBENCH_THREADS={count}")
+
+
+def test_network_weight_gradients_do_not_depend_on_torch_threads():
+    # A sweep worker trains on one thread, a serial run on every core. MKL splits the
+    # batch-long reduction of a weight gradient (Xᵀ·dY) over its threads unless its strict
+    # reproducibility mode is on, which importing prtbench sets (MKL_CBWR): without it the
+    # gradients below differ in their last bits between 1 and 2 threads (measured), and
+    # neural-wavelet's smoke model by 0.04 dB.
+    import os
+
+    import prtbench  # noqa: F401  (sets MKL_CBWR on import)
+    torch = pytest.importorskip("torch")
+
+    assert os.environ.get("MKL_CBWR") == "AUTO,STRICT"
+    generator = torch.Generator().manual_seed(0)
+    x = torch.randn(16384, 78, generator=generator)
+    y = torch.randn(16384, 16, generator=generator)
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(torch.nn.Linear(78, 32), torch.nn.ReLU(), torch.nn.Linear(32, 16))
+
+    def gradients(threads: int) -> list:
+        previous = torch.get_num_threads()
+        torch.set_num_threads(threads)
+        try:
+            net.zero_grad()
+            (net(x) - y).abs().mean().backward()
+            return [p.grad.clone() for p in net.parameters()]
+        finally:
+            torch.set_num_threads(previous)
+
+    one, two = gradients(1), gradients(2)
+    assert all(g.abs().max() > 0 for g in one)
+    for a, b in zip(one, two):
+        assert torch.equal(a, b)
