@@ -12,8 +12,8 @@ It prints, per case: raw embree Mrays/s (one call, one thread), the same rays sp
 1 and with ``cores`` threads, the ratio to the target and the load average while measuring
 (other processes on a shared machine lower every parallel figure). Calls are interleaved and
 the best of ``ROUNDS`` is kept; the share of embree's own scaling that the pipeline reaches is
-also given as the median over rounds of the two measured side by side, a figure that the
-machine's other tenants move much less. It asserts the bit-identity, nothing about timing.
+also given as the median over rounds of the two measured side by side. It asserts the
+bit-identity, nothing about timing.
 """
 
 from __future__ import annotations
@@ -81,8 +81,7 @@ def test_threaded_transfer_vs_one_raw_embree_call(benchmark, monkeypatch, bands,
 
     best = {name: min(t) for name, t in times.items()}
     # Paired within each round (the same minute of the machine): the pipeline's share of
-    # embree's own scaling. On a shared machine, what the other tenants do moves embree's
-    # 2-thread figure between rounds; this share moves much less.
+    # embree's own scaling, which the other tenants of a shared machine move between rounds.
     paired = float(np.median(np.asarray(times["raw_split"]) / np.asarray(times["all"])))
     rate = {name: n_rays / t / 1e6 for name, t in best.items()}
     info = {

@@ -53,6 +53,10 @@ def _check_bands(bands: int, *, low: int = 1, high: int = 64) -> int:
     return int(bands)
 
 
+#: Directions per block of :func:`eval_sh` (its coefficient-major scratch: 8·n²·this bytes).
+_EVAL_BLOCK = 1 << 14
+
+
 def eval_sh(dirs: np.ndarray, bands: int) -> np.ndarray:
     """Evaluate all real SH of ``bands`` bands at unit directions.
 
@@ -75,10 +79,6 @@ def eval_sh(dirs: np.ndarray, bands: int) -> np.ndarray:
         block = slice(start, start + _EVAL_BLOCK)
         out[block] = eval_sh_coefficient_major(d[block], bands).T
     return out
-
-
-#: Directions per block of :func:`eval_sh` (its coefficient-major scratch: 8·n²·this bytes).
-_EVAL_BLOCK = 1 << 14
 
 
 def eval_sh_coefficient_major(dirs: np.ndarray, bands: int) -> np.ndarray:

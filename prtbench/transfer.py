@@ -40,7 +40,7 @@ import numpy as np
 
 from .cache import cached_arrays, content_key
 from .errors import InvalidInputError
-from .parallel import Scratch, map_chunks, repeat_rows
+from .parallel import Scratch, map_chunks, parallel_chunks, repeat_rows
 from .parallel import _openblas_threads  # noqa: F401  (re-exported for users)
 from .parallel import single_threaded_blas as _single_threaded_blas
 from .raytrace import Tracer, offset_origins
@@ -182,11 +182,10 @@ def _chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> lis
     if chunk_points is not None:
         if int(chunk_points) != chunk_points or chunk_points < 1:
             raise InvalidInputError(f"chunk_points={chunk_points!r}; accepted: integers >= 1")
-        step = int(chunk_points)
-        return [slice(s, min(s + step, n_points)) for s in range(0, n_points, step)]
+        return parallel_chunks(n_points, int(chunk_points))
     step = max(1, MAX_RAYS_PER_CHUNK // rays_per_point)
     if n_points <= step:  # one chunk: its rays are split over the threads by the tracer
-        return [slice(0, n_points)] if n_points else []
+        return parallel_chunks(n_points, step)
     lead = max(1, int(step * LEAD_CHUNK_FRACTION))
     return [slice(0, lead)] + [slice(s, min(s + step, n_points))
                                for s in range(lead, n_points, step)]
