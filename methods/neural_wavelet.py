@@ -100,6 +100,11 @@ class NeuralWaveletConfig:
                              "light, about a seeded horizontal axis: moves its sources to other "
                              "elevations (0: turns about +Y only, as the paper).", low=0.0,
                              high=180.0)
+    random_lights: int = knob(0, "Seeded procedural environments added to the training lights "
+                              "(prtbench.random_lights: random sky, ground and one to three "
+                              "sources at random elevations, sizes and colours); the paper "
+                              "trains on ~1000 maps where we ship eight.", low=0,
+                              high=100_000)
     train_views: int = knob(64, "Training cameras near the scene's trajectory.", low=1,
                             high=100_000)
     lights_per_view: int = knob(2, "Training lights rendered per camera (paper: 2).", low=1,

@@ -18,8 +18,10 @@ feeds the network at run time. Only front-facing covered pixels become training 
 ``light_tilt`` > 0, turns i ≥ 1 are also tilted by a seeded angle in ±``light_tilt`` degrees
 about a seeded horizontal axis (a bilinear resampling): a turn about +Y keeps every source at
 its elevation, so a held-out light whose sun sits lower than any training light's is otherwise
-an extrapolation. Held-out lights (never in training) are checked to be disjoint from the
-training names.
+an extrapolation. ``random_lights`` > 0 appends that many seeded procedural environments
+(:mod:`prtbench.random_lights`: random sky and ground, one to three sources of random size,
+elevation and colour) to the named ones. Held-out lights (never in training) are checked to be
+disjoint from the training names.
 
 **Views.** Training cameras are the scene's trajectory views moved by a seeded yaw of
 ±[``view_jitter``/3, ``view_jitter``] degrees about the target, a pitch of ±``view_jitter``/2
@@ -45,11 +47,11 @@ from prtbench.errors import InvalidInputError
 #: Bump when the data (rendering, G-buffer, views, lights) changes for the same knobs.
 DATA_VERSION = 1
 #: The knobs of the method config that change the training data.
-DATA_KNOBS = ("bounces", "train_lights", "light_rotations", "light_tilt", "train_views",
-              "lights_per_view", "view_jitter", "train_width", "train_height", "train_spp",
-              "cubemap", "seed")
+DATA_KNOBS = ("bounces", "train_lights", "light_rotations", "light_tilt", "random_lights",
+              "train_views", "lights_per_view", "view_jitter", "train_width", "train_height",
+              "train_spp", "cubemap", "seed")
 #: Data knobs left out of the dataset key at this value (added later: the key stays as it was).
-DATA_KNOB_DEFAULTS = {"light_tilt": 0.0}
+DATA_KNOB_DEFAULTS = {"light_tilt": 0.0, "random_lights": 0}
 
 
 def rotated_light(light, degrees: float):
@@ -90,10 +92,13 @@ def tilted_light(light, degrees: float, *, axis_azimuth_deg: float):
                                    f"about the horizontal axis at {float(axis_azimuth_deg):.3g}")
 
 
-def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0) -> list:
+def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0,
+                    random: int = 0) -> list:
     """Every training light: each name at ``rotations`` turns about +Y; with ``tilt`` > 0,
-    turns i ≥ 1 also tilted by a seeded angle in ±``tilt`` degrees (module docstring)."""
+    turns i ≥ 1 also tilted by a seeded angle in ±``tilt`` degrees; then ``random`` seeded
+    procedural environments (:mod:`prtbench.random_lights`; module docstring)."""
     from prtbench.lights import get_light
+    from prtbench.random_lights import random_environments
 
     if int(rotations) != rotations or rotations < 1:
         raise InvalidInputError(f"light_rotations={rotations!r}; accepted: integers >= 1")
@@ -109,7 +114,9 @@ def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0) 
                 angle, azimuth = float(tilt) * rng.uniform(-1.0, 1.0), rng.uniform(0.0, 360.0)
                 light = tilted_light(light, angle, axis_azimuth_deg=azimuth)
             out.append(light)
-    return out
+    if int(random) != random or random < 0:
+        raise InvalidInputError(f"random_lights={random!r}; accepted: integers >= 0")
+    return out + random_environments(int(random), seed=seed)
 
 
 def check_light_split(train, heldout) -> None:
@@ -239,7 +246,8 @@ def build_dataset(scene, config, *, progress: bool = True) -> dict[str, np.ndarr
     from .gbuffer import GBufferPass, pixel_rows
 
     lights = training_lights(config.train_lights, config.light_rotations,
-                             tilt=config.light_tilt, seed=config.seed)
+                             tilt=config.light_tilt, seed=config.seed,
+                             random=config.random_lights)
     views = training_views(scene, count=config.train_views, jitter=config.view_jitter,
                            seed=config.seed)
 

@@ -299,6 +299,25 @@ def test_light_tilt_zero_keeps_the_data_and_artifact_keys_and_tilts_only_later_t
         training_lights(("sky",), 3, tilt=200.0)
 
 
+def test_random_lights_zero_keeps_the_keys_and_random_lights_follow_the_named_ones():
+    from prtbench.method import artifact_key
+    from prtbench.neural_wavelet.data import dataset_key, training_lights, training_views
+
+    cls = METHODS.get("neural-wavelet")
+    scene = _scene()
+    plain = cls.make_config({}, profile="smoke")
+    more = cls.make_config({"random_lights": 4}, profile="smoke")
+    views = training_views(scene, count=2, jitter=20.0, seed=0)
+    assert "random_lights" not in cls.cache_identity(plain)  # trained before the knob: same key
+    assert artifact_key(cls, scene, plain) != artifact_key(cls, scene, more)
+    assert dataset_key(scene, plain, views) != dataset_key(scene, more, views)
+    lights = training_lights(("sky",), 2, seed=5, random=3)
+    assert [lt.name for lt in lights] == ["sky", "sky@180", "random1-5-0", "random1-5-1",
+                                          "random1-5-2"]
+    with pytest.raises(InvalidInputError, match="random_lights=-1"):
+        training_lights(("sky",), 2, random=-1)
+
+
 def test_glossy_comparison_refuses_a_scene_without_glossy_materials():
     from prtbench.neural_wavelet.evaluate import require_glossy
 
