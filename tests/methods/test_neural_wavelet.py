@@ -275,19 +275,27 @@ def test_a_tilted_light_moves_its_sun_by_the_tilt_and_keeps_its_power():
     np.testing.assert_allclose(tilted.total_power(), sun.total_power(), rtol=0.02)
 
 
-def test_light_tilt_zero_keeps_the_data_and_artifact_keys_and_tilts_only_later_turns():
+@pytest.mark.parametrize("knob, value", [("light_tilt", 30.0), ("random_lights", 4)])
+def test_a_data_knob_added_later_keeps_the_keys_at_its_default_and_changes_them_otherwise(
+        knob, value):
     from prtbench.method import artifact_key
-    from prtbench.neural_wavelet.data import dataset_key, training_lights, training_views
+    from prtbench.neural_wavelet.data import DATA_KNOB_DEFAULTS, dataset_key, training_views
 
     cls = METHODS.get("neural-wavelet")
     scene = _scene()
     plain = cls.make_config({}, profile="smoke")
-    tilted = cls.make_config({"light_tilt": 30.0}, profile="smoke")
+    changed = cls.make_config({knob: value}, profile="smoke")
+    assert getattr(plain, knob) == DATA_KNOB_DEFAULTS[knob]
     views = training_views(scene, count=2, jitter=20.0, seed=0)
-    # The knob was added after models were trained: at 0 it is not in either key.
-    assert "light_tilt" not in cls.cache_identity(plain)
-    assert artifact_key(cls, scene, plain) != artifact_key(cls, scene, tilted)
-    assert dataset_key(scene, plain, views) != dataset_key(scene, tilted, views)
+    # The knob was added after models were trained: at its default it is in neither key.
+    assert knob not in cls.cache_identity(plain)
+    assert artifact_key(cls, scene, plain) != artifact_key(cls, scene, changed)
+    assert dataset_key(scene, plain, views) != dataset_key(scene, changed, views)
+
+
+def test_light_tilt_tilts_only_later_turns_and_is_seeded():
+    from prtbench.neural_wavelet.data import training_lights
+
     upright = training_lights(("sky",), 3)
     turned = training_lights(("sky",), 3, tilt=30.0, seed=0)
     assert [lt.name for lt in upright] == ["sky", "sky@120", "sky@240"]
@@ -299,18 +307,9 @@ def test_light_tilt_zero_keeps_the_data_and_artifact_keys_and_tilts_only_later_t
         training_lights(("sky",), 3, tilt=200.0)
 
 
-def test_random_lights_zero_keeps_the_keys_and_random_lights_follow_the_named_ones():
-    from prtbench.method import artifact_key
-    from prtbench.neural_wavelet.data import dataset_key, training_lights, training_views
+def test_random_lights_follow_the_named_ones():
+    from prtbench.neural_wavelet.data import training_lights
 
-    cls = METHODS.get("neural-wavelet")
-    scene = _scene()
-    plain = cls.make_config({}, profile="smoke")
-    more = cls.make_config({"random_lights": 4}, profile="smoke")
-    views = training_views(scene, count=2, jitter=20.0, seed=0)
-    assert "random_lights" not in cls.cache_identity(plain)  # trained before the knob: same key
-    assert artifact_key(cls, scene, plain) != artifact_key(cls, scene, more)
-    assert dataset_key(scene, plain, views) != dataset_key(scene, more, views)
     lights = training_lights(("sky",), 2, seed=5, random=3)
     assert [lt.name for lt in lights] == ["sky", "sky@180", "random1-5-0", "random1-5-1",
                                           "random1-5-2"]
