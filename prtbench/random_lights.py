@@ -24,7 +24,8 @@ import math
 
 import numpy as np
 
-from prtbench.lights import EnvironmentLight, _add_sun, _grid_directions, _smoothstep
+from prtbench.lights import (EnvironmentLight, _add_sun, _grid_directions, _smoothstep,
+                             _sun_direction)
 
 #: Rows of a random environment's lat-long map (texel ≈ 0.7°, finer than the smallest source).
 RANDOM_HEIGHT = 256
@@ -54,11 +55,6 @@ def _warm_to_cool(rng: np.random.Generator) -> np.ndarray:
     return colour / colour.mean()
 
 
-def _direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
-    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
-    return np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
-
-
 def random_environment(index: int, *, seed: int = 0) -> EnvironmentLight:
     """The ``index``-th random environment of ``seed`` (module docstring); name
     ``random<version>-<seed>-<index>``."""
@@ -77,7 +73,7 @@ def random_environment(index: int, *, seed: int = 0) -> EnvironmentLight:
     image = upper * above + ground * (1.0 - above)
     scale = float(np.mean(zenith + horizon))
     for _ in range(int(rng.integers(1, 4))):
-        direction = _direction(rng.uniform(*SOURCE_ELEVATION_DEG), rng.uniform(0.0, 360.0))
+        direction = _sun_direction(rng.uniform(*SOURCE_ELEVATION_DEG), rng.uniform(0.0, 360.0))
         colour = _warm_to_cool(rng)
         cos_gamma = np.clip(dirs @ direction, -1.0, 1.0)
         glow = rng.uniform(0.0, 0.5) * scale * np.exp((cos_gamma - 1.0)
