@@ -104,6 +104,8 @@ def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0,
         raise InvalidInputError(f"light_rotations={rotations!r}; accepted: integers >= 1")
     if not 0.0 <= float(tilt) <= 180.0:
         raise InvalidInputError(f"light_tilt={tilt!r}; accepted: degrees in [0, 180]")
+    if int(random) != random or random < 0:
+        raise InvalidInputError(f"random_lights={random!r}; accepted: integers >= 0")
     rng = np.random.default_rng([int(seed), 0x544C])  # stream tag "TL"
     out = []
     for name in names:
@@ -114,8 +116,6 @@ def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0,
                 angle, azimuth = float(tilt) * rng.uniform(-1.0, 1.0), rng.uniform(0.0, 360.0)
                 light = tilted_light(light, angle, axis_azimuth_deg=azimuth)
             out.append(light)
-    if int(random) != random or random < 0:
-        raise InvalidInputError(f"random_lights={random!r}; accepted: integers >= 0")
     return out + random_environments(int(random), seed=seed)
 
 
