@@ -125,8 +125,12 @@ class NeuralWaveletConfig:
                                 high=1.0)
     loss: str = knob("mulaw", "Training loss: mulaw (the paper's §4: L2 of the μ-law "
                      "tonemapped prediction and target, sign-extended to negatives, so that bright "
-                     "regions do not dominate) or l2 (L2 on linear radiance).",
-                     choices=("mulaw", "l2"))
+                     "regions do not dominate), l2 (L2 on linear radiance) or relative (L2 "
+                     "divided by the squared prediction, held constant, plus relative_eps: as "
+                     "tonemap-insensitive as mulaw but unbiased on noisy Monte Carlo targets).",
+                     choices=("mulaw", "l2", "relative"))
+    relative_eps: float = knob(0.01, "ε of loss=relative, in units of the mean training target: "
+                               "(pred − target)² / (sg(pred) + ε)².", low=1e-6, high=1e3)
     mulaw_mu: float = knob(5000.0, "μ of the μ-law tonemap log(1 + μ|x|)/log(1 + μ) (Kalantari "
                            "and Ramamoorthi 2017's value; the paper's is lost in our copy).",
                            low=1e-3, high=1e7)
@@ -177,10 +181,12 @@ class NeuralWavelet(Method):
     @classmethod
     def cache_identity(cls, config: NeuralWaveletConfig) -> dict:
         from prtbench.neural_wavelet.data import DATA_KNOB_DEFAULTS
+        from prtbench.neural_wavelet.train import TRAIN_KNOB_DEFAULTS
 
         # Knobs added later leave the artifacts trained before them at their old keys.
+        late = {**DATA_KNOB_DEFAULTS, **TRAIN_KNOB_DEFAULTS}
         return {k: v for k, v in super().cache_identity(config).items()
-                if DATA_KNOB_DEFAULTS.get(k, object()) != v}
+                if late.get(k, object()) != v}
 
     @classmethod
     def validate(cls, scene, config: NeuralWaveletConfig) -> None:
