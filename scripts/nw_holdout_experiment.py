@@ -6,8 +6,9 @@ Usage::
 
 The first argument is a JSON dict of overrides on the test's ``COMPARISON`` config; ``variants``
 is a comma list (default ``hashgrid,vertex``). Prints, on the test's scene, views, size and
-256-spp indirect reference: the black image and the SH baseline (sloan-matrix 5 bands,
-bounces 1 minus 0) on the held-out lights, then per variant the indirect masked PSNR on
+indirect reference (the test's ``HOLDOUT_REFERENCE_SPP`` samples; ``NW_EVAL_SPP`` overrides):
+the black image and the SH baseline (sloan-matrix 5 bands, bounces 1 minus 0) on the held-out
+lights, then per variant the indirect masked PSNR on
 
 * ``heldout``: the held-out lights (the must-hold's number),
 * ``heldout_all``: the same with every wavelet term (k = 6N²) instead of ``light_terms``,
@@ -40,12 +41,12 @@ from prtbench.lights import get_light  # noqa: E402
 from prtbench.method import METHODS, load_or_precompute  # noqa: E402
 from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline  # noqa: E402
 from prtbench.scene import get_scene  # noqa: E402
-from test_neural_wavelet import COMPARISON  # noqa: E402
+from test_neural_wavelet import COMPARISON, HOLDOUT_REFERENCE_SPP  # noqa: E402
 
 import os  # noqa: E402
 
 #: The test's evaluation size and reference samples (NW_EVAL_SPP overrides the latter).
-W, H, SPP = 64, 48, int(os.environ.get("NW_EVAL_SPP", 256))
+W, H, SPP = 64, 48, int(os.environ.get("NW_EVAL_SPP", HOLDOUT_REFERENCE_SPP))
 
 
 def psnr_over(renderer, scene, lights) -> float:
