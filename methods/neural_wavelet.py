@@ -180,13 +180,10 @@ class NeuralWavelet(Method):
 
     @classmethod
     def cache_identity(cls, config: NeuralWaveletConfig) -> dict:
-        from prtbench.neural_wavelet.data import DATA_KNOB_DEFAULTS
-        from prtbench.neural_wavelet.train import TRAIN_KNOB_DEFAULTS
+        from prtbench.neural_wavelet.data import without_late_defaults
 
         # Knobs added later leave the artifacts trained before them at their old keys.
-        late = {**DATA_KNOB_DEFAULTS, **TRAIN_KNOB_DEFAULTS}
-        return {k: v for k, v in super().cache_identity(config).items()
-                if late.get(k, object()) != v}
+        return without_late_defaults(super().cache_identity(config))
 
     @classmethod
     def validate(cls, scene, config: NeuralWaveletConfig) -> None:

@@ -50,8 +50,14 @@ DATA_VERSION = 1
 DATA_KNOBS = ("bounces", "train_lights", "light_rotations", "light_tilt", "random_lights",
               "train_views", "lights_per_view", "view_jitter", "train_width", "train_height",
               "train_spp", "cubemap", "seed")
-#: Data knobs left out of the dataset key at this value (added later: the key stays as it was).
-DATA_KNOB_DEFAULTS = {"light_tilt": 0.0, "random_lights": 0}
+#: Knobs (of the data or of training) added after datasets and models were cached: at this value
+#: each is left out of every key (dataset, model, artifact), so those keep the keys they had.
+LATE_KNOB_DEFAULTS = {"light_tilt": 0.0, "random_lights": 0, "relative_eps": 0.01}
+
+
+def without_late_defaults(knobs: dict) -> dict:
+    """``knobs`` less the entries that hold their :data:`LATE_KNOB_DEFAULTS` value."""
+    return {k: v for k, v in knobs.items() if LATE_KNOB_DEFAULTS.get(k, object()) != v}
 
 
 def rotated_light(light, degrees: float):
@@ -224,8 +230,7 @@ def indirect_image(scene, light, view, *, width: int, height: int, spp: int, bou
 
 
 def dataset_key(scene, config, views) -> str:
-    knobs = {k: getattr(config, k) for k in DATA_KNOBS
-             if DATA_KNOB_DEFAULTS.get(k, object()) != getattr(config, k, None)}
+    knobs = without_late_defaults({k: getattr(config, k) for k in DATA_KNOBS})
     eyes = [[v.eye, v.target, v.fov_y] for v in views]
     return content_key("nw-data", DATA_VERSION, scene.content_hash(), knobs, eyes)
 

@@ -51,8 +51,6 @@ TRAIN_KNOBS = ("features", "levels", "features_per_level", "base_resolution", "p
                "reflect_degree", "wavelet_grid", "train_terms", "batch_pixels", "steps",
                "learning_rate", "adaptive_sampling", "loss", "mulaw_mu", "mulaw_white",
                "relative_eps", "seed")
-#: Training knobs left out of the model key at this value (added later: the key stays as it was).
-TRAIN_KNOB_DEFAULTS = {"relative_eps": 0.01}
 #: Cells per axis of the grid that groups hit points for the view-variance weights.
 VARIANCE_CELLS = 48
 
@@ -160,8 +158,9 @@ def _tensors(data: dict, device: str):
 
 
 def training_key(data_key: str, config) -> str:
-    knobs = {k: getattr(config, k) for k in TRAIN_KNOBS
-             if TRAIN_KNOB_DEFAULTS.get(k, object()) != getattr(config, k, None)}
+    from .data import without_late_defaults
+
+    knobs = without_late_defaults({k: getattr(config, k) for k in TRAIN_KNOBS})
     return content_key("nw-model", MODEL_VERSION, data_key, knobs)
 
 
@@ -191,6 +190,7 @@ def train_model(scene, config, *, progress: bool = True):
         model.target_scale.fill_(max(scale, 1e-8))
         inputs = _tensors(data, device)
         target = torch.as_tensor(data["target"], device=device) / model.target_scale
+        white = 1.0  # the μ-law's white point (kept in the stats; 1 without the μ-law)
         if config.loss == "mulaw":
             white = float(np.quantile(np.asarray(target.cpu()), config.mulaw_white)) or 1.0
             mu = float(config.mulaw_mu)
@@ -198,13 +198,18 @@ def train_model(scene, config, *, progress: bool = True):
             def tonemap(x):
                 return mulaw(x / white, mu)
         else:
-            white = 1.0
-
             def tonemap(x):
                 return x
-        mapped = tonemap(target)
-        relative = config.loss == "relative"
-        eps = float(config.relative_eps)
+        if config.loss == "relative":
+            eps = float(config.relative_eps)
+
+            def batch_loss(pred, index):
+                return relative_l2(pred, target[index], eps)
+        else:
+            mapped = tonemap(target)
+
+            def batch_loss(pred, index):
+                return torch.mean((tonemap(pred) - mapped[index]) ** 2)
         coeffs = data["coeffs"]
         by_light = [np.flatnonzero(data["light"] == l) for l in range(len(coeffs))]
         lit = [l for l, rows in enumerate(by_light) if len(rows)]
@@ -243,10 +248,7 @@ def train_model(scene, config, *, progress: bool = True):
                 lj = torch.as_tensor(coeffs[l][terms], device=device)
                 index = torch.as_tensor(batch, device=device)
                 pred = torch.einsum("pkc,kc->pc", model.transport(inputs.rows(index), terms), lj)
-                if relative:
-                    loss = relative_l2(pred, target[index], eps)
-                else:
-                    loss = torch.mean((tonemap(pred) - mapped[index]) ** 2)
+                loss = batch_loss(pred, index)
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()

@@ -280,14 +280,14 @@ def test_a_tilted_light_moves_its_sun_by_the_tilt_and_keeps_its_power():
 def test_a_knob_added_later_keeps_the_keys_at_its_default_and_changes_them_otherwise(
         knob, value, changes_data):
     from prtbench.method import artifact_key
-    from prtbench.neural_wavelet.data import DATA_KNOB_DEFAULTS, dataset_key, training_views
-    from prtbench.neural_wavelet.train import TRAIN_KNOB_DEFAULTS, training_key
+    from prtbench.neural_wavelet.data import LATE_KNOB_DEFAULTS, dataset_key, training_views
+    from prtbench.neural_wavelet.train import training_key
 
     cls = METHODS.get("neural-wavelet")
     scene = _scene()
     plain = cls.make_config({}, profile="smoke")
     changed = cls.make_config({knob: value}, profile="smoke")
-    assert getattr(plain, knob) == {**DATA_KNOB_DEFAULTS, **TRAIN_KNOB_DEFAULTS}[knob]
+    assert getattr(plain, knob) == LATE_KNOB_DEFAULTS[knob]
     views = training_views(scene, count=2, jitter=20.0, seed=0)
     # The knob was added after models were trained: at its default it is in no key.
     assert knob not in cls.cache_identity(plain)
