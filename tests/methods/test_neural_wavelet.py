@@ -398,7 +398,7 @@ HOLDOUT_REFERENCE_SPP = 4096
     "turns, 31.52 with random_lights 224 added (32000 steps: 31.17; vertex features on the "
     "same data and steps: 30.72), 31.30 with random_lights 992; with random_lights 224 and "
     "16000 steps, 2048 images (train_views 256) give hash grid 32.40, vertex 30.66 (seed 1: "
-    "30.92, 30.88) and 4096 images (train_views 512) 32.13, 30.41: a plateau at the SH "
+    "30.92, 30.88; seed 2: 31.24, 31.79) and 4096 images (train_views 512) 32.13, 30.41: a plateau at the SH "
     "baseline, and on training lights at the held-out views the hash grid reaches only "
     "32.95-33.60. Not the limit, each "
     "at 2000 steps: target noise (train_spp 2048 29.77, 8192 30.64), the omega_r encoding "
