@@ -22,9 +22,10 @@ lights, then per variant the indirect masked PSNR on
 and the training loss first -> last.
 
 ``--data-only`` renders (and caches) the training images of the first variant and stops: the
-Mitsuba renders also honour ``PRTBENCH_THREADS``, so build a large data set first with every
-core (2048 images: 7.3 min on the 2-core Xeon, against about twice that on one thread), then
-train its variants side by side on the cached data.
+Mitsuba renders also honour ``PRTBENCH_THREADS`` (a 4096-image build started under
+``PRTBENCH_THREADS=1`` ran on one core), so build a large data set first with every core (2048
+images: 7.3-8.3 min on the 2-core Xeon), then train its variants side by side on the cached
+data.
 
 Two runs at once on a 2-core machine: ``PRTBENCH_THREADS=1`` for each. Measured here (2-core
 Xeon, this config): about 13.8k training pixels/s per run that way, against 3.7k per run with
@@ -107,6 +108,12 @@ def _scene():
                      plane_subdivisions=8).with_views(3)
 
 
+def _config(cls, extra: dict, features: str, **more):
+    """The test's ``COMPARISON`` config with ``extra`` and ``more`` over it (quick profile)."""
+    return cls.make_config({**COMPARISON, **extra, "features": features, **more},
+                           profile="quick")
+
+
 def main() -> None:
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     extra = json.loads(args[0]) if args else {}
@@ -118,8 +125,7 @@ def main() -> None:
     if "--data-only" in sys.argv:
         from prtbench.neural_wavelet.data import build_dataset
 
-        config = cls.make_config({**COMPARISON, **extra, "features": variants[0]},
-                                 profile="quick")
+        config = _config(cls, extra, variants[0])
         data = build_dataset(scene, config, progress=True)
         print(f"data: {len(data['target'])} rows | wall {time.time() - t0:.0f} s", flush=True)
         return
@@ -137,7 +143,7 @@ def main() -> None:
         finally:
             sh.release()
     for features in variants:
-        config = cls.make_config({**COMPARISON, **extra, "features": features}, profile="quick")
+        config = _config(cls, extra, features)
         artifact = load_or_precompute(cls, scene, config, progress=False)
         m = artifact.meta
         train_lights = [get_light(n) for n in config.train_lights[:2]]
@@ -148,8 +154,7 @@ def main() -> None:
             out["trainlight"] = psnr_over(renderer, scene, train_lights)
         finally:
             renderer.release()
-        full = cls.make_config({**COMPARISON, **extra, "features": features,
-                                "light_terms": 6 * config.cubemap ** 2}, profile="quick")
+        full = _config(cls, extra, features, light_terms=6 * config.cubemap ** 2)
         renderer = cls.renderer(scene, artifact, full, width=W, height=H)
         try:
             out["heldout_all"] = psnr_over(renderer, scene, heldout)
