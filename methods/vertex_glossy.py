@@ -183,7 +183,9 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
 
 
 def _format_bytes(size: int) -> str:
-    return f"{size / 2**30:.2f} GiB" if size >= 2**30 else f"{size / 2**20:.1f} MiB"
+    if size >= 2**30:
+        return f"{size / 2**30:.2f} GiB"
+    return f"{size / 2**20:.1f} MiB" if size >= 2**20 else f"{size / 2**10:.0f} KiB"
 
 
 def matrix_bytes(n_vertices: int, bands: int, *, channels: int = 1) -> int:
@@ -354,6 +356,19 @@ class SloanMatrix(_GlossyVertexMethod):
                 f"sh_bands={config.sh_bands} (max_bytes={_format_bytes(config.max_bytes)} of "
                 f"transfer matrices, V × {floats}{config.sh_bands**4} floats; this scene needs "
                 f"{_format_bytes(size)}); {hint}, or raise max_bytes")
+        # The renderer uploads the matrices as one shader storage block: refuse here, before
+        # the precompute (45 min at 10⁶ triangles on 2 cores), what it would refuse anyway.
+        from prtbench import gl
+
+        try:
+            limit = gl.storage_block_limit()
+        except gl.GLUnavailableError:  # no GL here: the renderer checks where it runs
+            limit = 0
+        if limit and size > limit:
+            raise InvalidInputError(storage_limit_message(
+                "matrices", size, limit, rgb=channels > 1,
+                what=f"scene '{scene.name}' ({scene.n_vertices} vertices, sh_bands="
+                     f"{config.sh_bands}): its "))
 
     @classmethod
     def precompute(cls, scene, config: SloanMatrixConfig, *, progress: bool = True) -> Artifact:
@@ -394,6 +409,13 @@ class SloanMatrix(_GlossyVertexMethod):
 
 # --- renderer ---------------------------------------------------------------------------------
 
+def storage_limit_message(key: str, nbytes: int, limit: int, *, rgb: bool, what: str = "") -> str:
+    """The one-line refusal of a per-vertex buffer over the GL's shader storage block limit."""
+    return (f"{what}{key} buffer of {_format_bytes(nbytes)} exceeds this GL's shader storage "
+            f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh"
+            + (" (bounces make the matrices RGB: 3× the floats)" if rgb else ""))
+
+
 class GlossyVertexRenderer(RasterRenderer):
     """Per-vertex H (TP, TPFL or matrix) and Phong shading; interpolated radiance.
 
@@ -432,10 +454,7 @@ class GlossyVertexRenderer(RasterRenderer):
         limit = gl.storage_block_limit(self.ctx)
         if limit and data.nbytes > limit:
             RasterRenderer.release(self)
-            raise InvalidInputError(
-                f"{key} buffer of {_format_bytes(data.nbytes)} exceeds this GL's shader storage "
-                f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh"
-                + (" (bounces make the matrices RGB: 3× the floats)" if rgb else ""))
+            raise InvalidInputError(storage_limit_message(key, data.nbytes, limit, rgb=rgb))
         # Vertex-major: transfer[v·n² + i], matrices[v·n⁴ + k·n² + i] or, RGB,
         # matrices[(v·n⁴ + k·n² + i)·3 + c].
         self.data_buffer = self.ctx.buffer(data.tobytes())

@@ -127,22 +127,23 @@ def stored_block_limit(frame) -> int:
 def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
     """Why ``sloan-matrix`` cannot run on ``scene`` here (None if it can).
 
-    Checks the method's own ``max_bytes`` knob (its validate) and the GL shader-storage block
-    limit (``limit``; default this machine's), which its renderer would hit only after the
-    (long) precompute.
+    Checks the GL shader-storage block limit (``limit``; default this machine's), then the
+    method's own validate (its ``max_bytes`` knob).
     """
     from prtbench.errors import InvalidInputError
     from prtbench.method import METHODS
 
-    try:
-        METHODS.get("sloan-matrix").validate(scene, config)
-    except InvalidInputError as exc:
-        return f"refused by the method: {exc}"
+    # The limit first: the method's validate checks the live GL too, and a report rebuilt
+    # from the store must quote the limit its sweep ran under.
     size = sloan_vertex_bytes(scene.n_vertices, config.sh_bands)
     limit = gl_storage_block_limit() if limit is None else limit
     if limit and size > limit:
         return (f"{size / 2**20:.0f} MiB of matrices exceed this GL's shader storage block limit "
                 f"(GL_MAX_SHADER_STORAGE_BLOCK_SIZE = {limit / 2**20:.0f} MiB)")
+    try:
+        METHODS.get("sloan-matrix").validate(scene, config)
+    except InvalidInputError as exc:
+        return f"refused by the method: {exc}"
     return None
 
 

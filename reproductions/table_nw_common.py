@@ -302,9 +302,10 @@ def sloan_config(profile: str, *, bounces: int):
 
 
 def check_sloan(st: Setup, *, bounces: int) -> None:
-    """Refuse before any training or reference render if the SH baseline cannot run here: its
-    own validate (``max_bytes``) and this GL's shader-storage block limit, which its renderer
-    would otherwise hit only after the precompute (InvalidInputError, exit 2)."""
+    """Refuse before any training or reference render if the SH baseline cannot run here:
+    this GL's shader-storage block limit (named with the profile, before the method's own
+    validate checks it in its terms), then its validate (``max_bytes``); InvalidInputError,
+    exit 2."""
     from prtbench import gl
     from prtbench.errors import InvalidInputError
 
@@ -314,7 +315,6 @@ def check_sloan(st: Setup, *, bounces: int) -> None:
     limit = gl.storage_block_limit()
     for b in (bounces, 0):
         cfg = sloan_config(st.profile, bounces=b)
-        cls.validate(st.train_scene, cfg)
         size = matrix_bytes(st.train_scene.n_vertices, cfg.sh_bands,
                             channels=matrix_channels(cfg))
         if limit and size > limit:
@@ -324,6 +324,7 @@ def check_sloan(st: Setup, *, bounces: int) -> None:
                 f"{st.train_scene.n_vertices} vertices, over this GL's shader storage block limit "
                 f"of {limit / 2**20:.1f} MiB ({gl.renderer_string()}); accepted: a profile whose "
                 "baseline fits (smoke or quick here; paper needs a GPU driver)")
+        cls.validate(st.train_scene, cfg)
 
 
 def measure_sloan(writer: RowWriter, st: Setup, label: dict, *, bounces: int, direct_spp: int,

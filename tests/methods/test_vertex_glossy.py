@@ -269,6 +269,37 @@ def test_sloan_matrix_rejects_oversized_matrices_naming_the_size():
     cls.validate(scene, cls.make_config({"sh_bands": 8, "max_bytes": size}))
 
 
+
+def test_sloan_matrix_over_the_gl_storage_limit_is_refused_before_the_precompute(
+        monkeypatch, tmp_path, capsys):
+    """The renderer uploads the matrices as one storage block; matrices over the GL's limit
+    (10⁶ triangles at 4 bands on llvmpipe, found only after 45 min of precompute before) are
+    refused by validate, and through the CLI with exit 2 and nothing cached or stored."""
+    from prtbench import gl
+    from prtbench.cli import main
+
+    scene = _sphere_scene(Material())
+    cls = METHODS.get("sloan-matrix")
+    rgb = scene.n_vertices * 4**4 * 3 * 4  # bounces make the matrices RGB
+    config = cls.make_config({"sh_bands": 4, "bounces": 1})
+    cls.validate(scene, config)  # this GL holds them
+    monkeypatch.setattr(gl, "storage_block_limit", lambda ctx=None: rgb - 1)
+    with pytest.raises(InvalidInputError, match=r"matrices buffer of .* exceeds this GL's shader "
+                                                r"storage block limit.*3× the floats"):
+        cls.validate(scene, config)
+    cls.validate(scene, cls.make_config({"sh_bands": 4}))  # grey: a third of the bytes fit
+
+    cache, out, results = tmp_path / "cache", tmp_path / "out", tmp_path / "r.sqlite"
+    monkeypatch.setenv("PRTBENCH_CACHE", str(cache))
+    monkeypatch.setattr(gl, "storage_block_limit", lambda ctx=None: 1 << 16)
+    status = main(["run", "--method", "sloan-matrix", "--scene", "sphere-over-plane",
+                   "--profile", "smoke", "--out", str(out), "--results", str(results)])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in err and "shader storage block limit of 64 KiB" in err, err
+    assert not out.exists() and not results.exists()
+    assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*"))
+
+
 @pytest.mark.parametrize("method", GLOSSY_METHODS)
 def test_textured_and_normal_mapped_materials_are_rejected(method):
     cls = METHODS.get(method)
