@@ -28,7 +28,8 @@ from .cases import BASE_SCENE, Case, _accepts
 
 #: Methods that store their transfer per vertex: their cost grows with the mesh. Named because
 #: a method declares no storage kind the registry could be asked for.
-PER_VERTEX_METHODS = ("vertex", "vertex-tp", "vertex-tpfl", "sloan-matrix", "wavelet-vertex")
+PER_VERTEX_METHODS = ("vertex", "vertex-tp", "vertex-tpfl", "sloan-matrix", "wavelet-vertex",
+                      "wavelet-tp")
 #: Sphere segments s of the large-mesh case per profile: 2·s·(s/2 − 1) sphere triangles.
 LARGE_MESH_SEGMENTS = {"smoke": 320, "quick": 1002}
 #: The large mesh may take this many times the profile's timeout (it is slow, not hung).
