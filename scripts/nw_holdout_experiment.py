@@ -3,13 +3,13 @@
 Usage::
 
     PYTHONPATH=. python scripts/nw_holdout_experiment.py '{"steps": 600}' [variants] [--no-sh]
-        [--data-only] [--scene=four-animals]
+        [--data-only] [--scene=sphere-over-plane]
 
-The first argument is a JSON dict of overrides on the test's ``COMPARISON`` config; ``variants``
-is a comma list (default ``hashgrid,vertex``). Prints, on the test's scene, views, size and
-indirect reference (the test's ``HOLDOUT_REFERENCE_SPP`` samples; ``NW_EVAL_SPP`` overrides):
-the black image and the SH baseline (sloan-matrix 5 bands, bounces 1 minus 0) on the held-out
-lights, then per variant the indirect masked PSNR on
+The first argument is a JSON dict of overrides on the test's ``COMPARISON`` config;
+``variants`` is a comma list (default ``hashgrid,vertex``). Prints, on the test's scene, views,
+size and indirect reference (the test's ``HOLDOUT_REFERENCE_SPP`` samples; ``NW_EVAL_SPP``
+overrides): the black image and the SH baseline (sloan-matrix, bounces 1 minus 0, the test's
+bands) on the held-out lights, then per variant the indirect masked PSNR on
 
 * ``heldout``: the held-out lights (the must-hold's number),
 * ``heldout_all``: the same with every wavelet term (k = 6N²) instead of ``light_terms``,
@@ -21,20 +21,20 @@ lights, then per variant the indirect masked PSNR on
 
 and the training loss first -> last.
 
-``--scene=four-animals`` runs the same on the issue's glossy stand-in scene instead, reduced:
-glossy four-animals, ground subdivided 8×8, the first 3 views of its ``near`` (training) orbit;
-its SH baseline has 3 bands, since 4 or more bands of RGB matrices on its ~86k vertices exceed
-llvmpipe's 128 MiB storage-block limit (see ``reproductions/table_nw_common.py``).
+The scene is the test's (``must_hold_scene``: reduced glossy four-animals, 3-band SH baseline,
+the most llvmpipe's 128 MiB storage block holds on its ~85k vertices). ``--scene=
+sphere-over-plane`` runs the earlier reduced case instead: a glossy sphere (24 segments) over
+a glossy plane (8×8), 3 views, 5-band SH baseline.
 
 ``--data-only`` renders (and caches) the training images of the first variant and stops: the
 Mitsuba renders also honour ``PRTBENCH_THREADS`` (a 4096-image build started under
-``PRTBENCH_THREADS=1`` ran on one core), so build a large data set first with every core (2048
-images: 7.3-8.3 min on the 2-core Xeon), then train its variants side by side on the cached
-data.
+``PRTBENCH_THREADS=1`` ran on one core), so build a large data set first with every core (on
+the 2-core Xeon: four-animals 512 images 5.6 min, 2048 images 27.5 min; the sphere over plane
+2048 images 7.3-8.3 min), then train its variants side by side on the cached data.
 
 Two runs at once on a 2-core machine: ``PRTBENCH_THREADS=1`` for each. Measured here (2-core
-Xeon, this config): about 13.8k training pixels/s per run that way, against 3.7k per run with
-two threads each, so two seeds take ~4 minutes where one took ~11.
+Xeon, sphere over plane, ``COMPARISON``): about 13.8k training pixels/s per run that way,
+against 3.7k per run with two threads each, so two seeds take ~4 minutes where one took ~11.
 """
 
 from __future__ import annotations
@@ -53,7 +53,8 @@ from prtbench.lights import get_light  # noqa: E402
 from prtbench.method import METHODS, load_or_precompute  # noqa: E402
 from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline  # noqa: E402
 from prtbench.scene import get_scene  # noqa: E402
-from test_neural_wavelet import COMPARISON, HOLDOUT_REFERENCE_SPP  # noqa: E402
+from test_neural_wavelet import (COMPARISON, HOLDOUT_REFERENCE_SPP,  # noqa: E402
+                                 MUST_HOLD_SH_BANDS, must_hold_scene)
 
 import os  # noqa: E402
 
@@ -108,17 +109,15 @@ def train_fit(artifact, config) -> float:
             float(10 * np.log10(count / derr)), float(10 * np.log10(count / dzero)))
 
 
-#: The scene (``--scene=NAME``): the must-hold's reduced sphere over plane by default.
-SCENE = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--scene=")),
-             "sphere-over-plane")
-#: SH bands of the baseline per scene (four-animals: the most llvmpipe holds, module docstring).
-SH_BANDS = {"sphere-over-plane": 5, "four-animals": 3}
+#: The scene (``--scene=NAME``): the must-hold's reduced four-animals by default.
+SCENE = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--scene=")), "four-animals")
+#: SH bands of the baseline per scene (four-animals: the test's, the most llvmpipe holds).
+SH_BANDS = {"four-animals": MUST_HOLD_SH_BANDS, "sphere-over-plane": 5}
 
 
 def _scene():
     if SCENE == "four-animals":
-        return get_scene("four-animals", variant="glossy", trajectory="near",
-                         ground_subdivisions=8).with_views(3)
+        return must_hold_scene()
     if SCENE != "sphere-over-plane":
         raise SystemExit(f"--scene={SCENE}; accepted: {', '.join(SH_BANDS)}")
     return get_scene("sphere-over-plane", variant="glossy", sphere_segments=24,
