@@ -269,7 +269,6 @@ def test_sloan_matrix_rejects_oversized_matrices_naming_the_size():
     cls.validate(scene, cls.make_config({"sh_bands": 8, "max_bytes": size}))
 
 
-
 def test_sloan_matrix_over_the_gl_storage_limit_is_refused_before_the_precompute(
         monkeypatch, tmp_path, capsys):
     """The renderer uploads the matrices as one storage block; matrices over the GL's limit
