@@ -148,6 +148,11 @@ def test_sphere_over_plane_below_the_sphere_sees_one_minus_r_over_h_squared():
     assert abs(t[0, sh.index(1, 0)]) <= 3 * err[0, sh.index(1, 0)] + 1e-6
 
 
+#: How far one point's transfer may move when its rays are summed in chunks of another size:
+#: a few float32 roundings of coefficients of order 1 (the SH products are float32).
+CHUNKING_ATOL = 2e-6
+
+
 def test_results_do_not_depend_on_chunking_and_follow_the_seed():
     scene = get_scene("sphere-over-plane", sphere_segments=16)
     positions, normals, _, _ = scene.merged()
@@ -155,7 +160,12 @@ def test_results_do_not_depend_on_chunking_and_follow_the_seed():
     kw = dict(bands=3, rays_per_point=64, use_cache=False, progress=False, tracer=tracer)
     a = compute_transfer(scene, positions, normals, **kw)
     b = compute_transfer(scene, positions, normals, chunk_points=7, **kw)
-    np.testing.assert_array_equal(a, b)
+    # The same rays in other chunks: equal up to float32 rounding, not bit for bit, since
+    # OpenBLAS may sum a product of another shape in another kernel (on an AMD EPYC 65 % of
+    # these coefficients differ, by at most 2.4e-7; a point given another point's rays
+    # would differ by ~0.1).
+    np.testing.assert_allclose(a, b, rtol=0, atol=CHUNKING_ATOL)
+    assert np.abs(a).max() > 0.5
     # The rays do not depend on the band count: fewer bands are exactly a truncation.
     np.testing.assert_allclose(compute_transfer(scene, positions, normals, **{**kw, "bands": 2}),
                                a[:, :4], atol=1e-6)
@@ -166,11 +176,12 @@ def test_results_do_not_depend_on_chunking_and_follow_the_seed():
     assert a.dtype == np.float32 and a.shape == (len(positions), 9)
 
 
-def test_padded_chunks_give_the_bits_of_whole_rounds_of_patterns():
+def test_padded_chunks_agree_with_whole_rounds_of_patterns():
     # 32-point chunks hold whole rounds of the 16 patterns; 40-point chunks (and the ragged
     # 8-point tail) are padded to whole rounds with zero-visibility rows. Both take one
-    # stacked float32 matmul per chunk and must agree bit for bit; rays beyond SUM_BLOCK
-    # go in blocks (M = 300: two blocks, the second zero-padded), also bit for bit.
+    # stacked float32 matmul per chunk and agree to float32 rounding; rays beyond SUM_BLOCK
+    # go in blocks (M = 300: two blocks, the second zero-padded), likewise. (Bit for bit on
+    # an AVX-512 Xeon; on an AMD EPYC OpenBLAS rounds 1.6 % of them differently, by 7.5e-9.)
     from prtbench import transfer as tr
 
     scene = get_scene("sphere-over-plane", sphere_segments=16, plane_subdivisions=4)
@@ -199,7 +210,7 @@ def test_padded_chunks_give_the_bits_of_whole_rounds_of_patterns():
         # (in any order: the chunks run on the precompute threads)
         expected = [((16, blocks, r, k), np.dtype(np.float32)) for r in (2, 3, 3, 3)]
         assert sorted(calls, key=lambda c: c[0]) == expected, calls
-        np.testing.assert_array_equal(padded, whole)
+        np.testing.assert_allclose(padded, whole, rtol=0, atol=CHUNKING_ATOL)
         assert np.abs(padded).max() > 0.1
 
 
