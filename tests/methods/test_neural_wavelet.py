@@ -401,7 +401,8 @@ def test_hashgrid_beats_vertex_features_and_sh_on_held_out_lights():
     """Held-out sunrise and sunset, indirect masked PSNR, 64×48, on the glossy stand-in.
 
     Measured from an empty cache on a 2-core AMD EPYC (two torch threads, 2 h 02 min in all:
-    2048 training images ~27 min, each 16000-step training ~26 min at ~10k pixels/s): black
+    each 16000-step training ~26 min at ~10k pixels/s, the 2048 Mitsuba training images, the
+    4096-spp references and the SH baseline the other ~69 min): black
     14.03, SH 23.28, hash grid 25.93, vertex features 22.17 dB, so the margins are 2.6 and
     3.8 dB against the 0.5 asked. Training is not reproducible across torch thread counts:
     scripts/nw_holdout_experiment.py with one thread per run (2-core Xeon) gave 25.66 and
