@@ -73,8 +73,10 @@ class NeuralWaveletConfig:
     hidden: int = knob(128, "Neurons per hidden layer of f_θ (paper: 128).", low=4, high=4096)
     layers: int = knob(2, "Hidden ReLU layers of f_θ (paper: 2).", low=1, high=16)
     reflect_degree: int = knob(4, "SH degree ℓ of the ωr encoding ((ℓ+1)² inputs; −1: ωr is "
-                               "not an input). The paper's value is lost in our copy; 4 until "
-                               "table-nw-4 decides.", low=-1, high=10)
+                               "not an input). The paper's value is lost in our copy. 4: the "
+                               "quick table-nw-4 (−1, 2, 4, 6) does not separate the degrees "
+                               "beyond table-nw-seeds' run-to-run spread, and the must-hold "
+                               "test passes at 4.", low=-1, high=10)
     # --- lighting -------------------------------------------------------------------------------
     cubemap: int = knob(32, "Cubemap face resolution N of the lighting (6·N² Haar wavelets).",
                         low=1, high=256)
