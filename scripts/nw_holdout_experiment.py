@@ -30,13 +30,15 @@ a glossy plane (8×8), 3 views, 5-band SH baseline.
 Mitsuba renders also honour ``PRTBENCH_THREADS`` (a 4096-image build started under
 ``PRTBENCH_THREADS=1`` ran on one core), so build a large data set first with every core (on
 the 2-core Xeon: four-animals 512 images 5.6 min, 2048 images 27.5 min; the sphere over plane
-2048 images 7.3-8.3 min), then train its variants side by side on the cached data.
+2048 images 7.3-8.3 min; on the 2-core AMD EPYC four-animals 2048 images took 70 min),
+then train its variants side by side on the cached data.
 
 Two runs at once on a 2-core machine: ``PRTBENCH_THREADS=1`` for each. Measured here (2-core
 Xeon, sphere over plane, the earlier 2000-step ``COMPARISON``): about 13.8k training pixels/s
 per run that way, against 3.7k per run with two threads each, so two seeds took ~4 minutes
-where one took ~11. ``COMPARISON`` is now the 2048-image, 16000-step config (about 20 min per
-variant that way); ``'{"random_lights": 0, "train_views": 64, "lights_per_view": 2, "steps":
+where one took ~11. ``COMPARISON`` is now the 2048-image, 16000-step config: on four-animals
+(2-core AMD EPYC, seed 1) its hash-grid and vertex variants side by side took 52 min each at
+~5.3k pixels/s; ``'{"random_lights": 0, "train_views": 64, "lights_per_view": 2, "steps":
 2000}'`` gives back the earlier 128-image one.
 """
 
