@@ -21,8 +21,10 @@ $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
 	$(PY) -m pip install -q -e '.[test]'
 	@touch $@
 
+# pytest on every core (pytest-xdist; the workers of one run share one temporary cache).
+PYTEST_WORKERS ?= auto
 test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric regression
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal
 	$(PRTBENCH) regress
 	@if command -v chromium >/dev/null; then $(MAKE) --no-print-directory test-browser; \
 	else echo "test-browser skipped: chromium is not installed (make setup installs it as root)"; fi

@@ -6,6 +6,10 @@ SHA-256 of everything the artifact depends on. Files are written to a temporary 
 directory and renamed into place, so an interrupted write never leaves a usable partial file.
 NumPy artifacts are ``.npz`` files with a checksum entry that is verified on load; a corrupt
 file is removed and recomputed, never used.
+
+Concurrent processes (sweep workers, ``pytest -n 2`` workers sharing one cache) compute an
+entry once: :func:`entry_lock` is an exclusive inter-process lock per entry, and a process
+that finds an entry missing takes it, looks again, and only then computes.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from filelock import FileLock
 
 
 def cache_root() -> Path:
@@ -67,6 +72,30 @@ def atomic_path(path: Path) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+@contextmanager
+def entry_lock(path: Path) -> Iterator[None]:
+    """Hold the inter-process lock of the cache entry at ``path`` (blocking).
+
+    Lock files live apart from the entries, under ``<cache>/.locks/`` (named by a hash of the
+    entry's path), and are removed on release; a reader that does not lock still sees either
+    no entry or a complete one (atomic rename). Removing a released lock file can let a third
+    process lock a new file while a second still holds the old one: at worst an entry is then
+    computed twice and renamed into place twice, never read half-written.
+    """
+    path = Path(path).resolve()
+    locks = cache_root().resolve() / ".locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    lock_path = locks / f"{hashlib.sha256(str(path).encode()).hexdigest()[:32]}.lock"
+    try:
+        with FileLock(str(lock_path)):
+            yield
+    finally:
+        try:
+            lock_path.unlink()
+        except OSError:  # another process holds it again, or has removed it
+            pass
 
 
 def _digest(arrays: Mapping[str, np.ndarray]) -> str:
@@ -172,19 +201,29 @@ def cached_arrays(kind: str, key: str, compute: Callable[[], Mapping[str, np.nda
     """
     path = cache_root() / kind / f"{key}.npz"
     time_path = path.with_name(f"{key}.time.json")
-    if use_cache:
-        hit = load_arrays(path)
-        if hit is not None:
-            _credit(_read_compute_time(time_path))
-            return hit
+    if not use_cache:
+        return _compute_entry(compute, path, time_path, store=False)
+    hit = load_arrays(path)
+    if hit is None:
+        with entry_lock(path):  # another process may be computing it: wait, then look again
+            hit = load_arrays(path)
+            if hit is None:
+                return _compute_entry(compute, path, time_path, store=True)
+    _credit(_read_compute_time(time_path))
+    return hit
+
+
+def _compute_entry(compute: Callable[[], Mapping[str, np.ndarray]], path: Path, time_path: Path,
+                   *, store: bool) -> dict[str, np.ndarray]:
     with credit_cached_compute() as inner:
         start = time.perf_counter()
         arrays = {k: np.asarray(v) for k, v in compute().items()}
         elapsed = time.perf_counter() - start + inner.credited_s
         unknown = inner.unknown
-    if use_cache:
-        save_arrays(path, arrays)
+    if store:
+        # The time first: a process that sees the entry (without the lock) finds its time too.
         if not unknown:  # a time missing parts would understate the entry's cost
             with atomic_path(time_path) as tmp:
                 tmp.write_text(json.dumps({"compute_s": elapsed}))
+        save_arrays(path, arrays)
     return arrays

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from . import config as config_mod
-from .cache import (atomic_path, cache_root, content_key, credit_cached_compute, load_arrays,
-                    save_arrays)
+from .cache import (atomic_path, cache_root, content_key, credit_cached_compute, entry_lock,
+                    load_arrays, save_arrays)
 from .registry import Registry
 
 if TYPE_CHECKING:
@@ -285,15 +285,34 @@ def load_or_precompute(method_cls: type[Method], scene: "Scene", config: Any, *,
     artifact reports the original time and ``rebuilt=True`` rather than the rebuild's time.
     """
     path = cache_root() / "artifacts" / method_cls.name / f"{artifact_key(method_cls, scene, config)}.npz"
-    record_path = path.with_suffix(".json")
-    existed = False
-    if use_cache:
-        existed = path.exists()
-        stored = load_arrays(path)  # removes a corrupt file
-        if stored is not None and "__meta__" in stored:
-            meta = json.loads(str(stored.pop("__meta__")))
-            return Artifact(method_cls.name, stored, meta["meta"], meta["precompute_s"], True)
-    record = _read_build_record(record_path) if use_cache else None
+    if not use_cache:
+        return _build_artifact(method_cls, scene, config, progress=progress, path=None,
+                               existed=False)
+    existed = path.exists()
+    artifact = _load_artifact(method_cls, path)  # removes a corrupt file
+    if artifact is not None:
+        return artifact
+    with entry_lock(path):  # another process may be building it: wait, then look again
+        artifact = _load_artifact(method_cls, path)
+        if artifact is not None:
+            return artifact
+        return _build_artifact(method_cls, scene, config, progress=progress, path=path,
+                               existed=existed)
+
+
+def _load_artifact(method_cls: type[Method], path) -> Artifact | None:
+    stored = load_arrays(path)
+    if stored is None or "__meta__" not in stored:
+        return None
+    meta = json.loads(str(stored.pop("__meta__")))
+    return Artifact(method_cls.name, stored, meta["meta"], meta["precompute_s"], True)
+
+
+def _build_artifact(method_cls: type[Method], scene: "Scene", config: Any, *, progress: bool,
+                    path, existed: bool) -> Artifact:
+    """Precompute; with a cache ``path``, store the artifact and its first build's time."""
+    record_path = path.with_suffix(".json") if path is not None else None
+    record = _read_build_record(record_path) if path is not None else None
     with credit_cached_compute() as reused:
         start = time.perf_counter()
         artifact = method_cls.precompute(scene, config, progress=progress)
@@ -303,7 +322,7 @@ def load_or_precompute(method_cls: type[Method], scene: "Scene", config: Any, *,
     artifact.precompute_s = wall_s + reused.credited_s
     if reused.unknown:  # a reused part from an older cache has no recorded time
         artifact.original_time_known = False
-    if use_cache:
+    if path is not None:
         if existed or record is not None:  # built before: this is a rebuild
             artifact.rebuilt, artifact.rebuild_s = True, wall_s
             if record is not None:

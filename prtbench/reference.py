@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from .cache import cache_root, content_key
+from .cache import cache_root, content_key, entry_lock
 from .errors import InvalidInputError, PrtbenchError
 from .scene import Scene, View
 
@@ -429,10 +429,28 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
     path = cache_root() / "references" / (reference_key(
         scene, light, view, width=width, height=height, bounces=bounces, spp=spp,
         seed=seed) + ".exr")
-    if use_cache:
+    if not use_cache:
+        return _render(scene, light, view, width=width, height=height, spp=spp,
+                       bounces=bounces, seed=seed, path=path, variant=variant, store=False,
+                       progress=progress)
+    hit = _load_cached(path)
+    if hit is not None:
+        return hit
+    with entry_lock(path):  # another process may be rendering it: wait, then look again
         hit = _load_cached(path)
         if hit is not None:
             return hit
+        return _render(scene, light, view, width=width, height=height, spp=spp,
+                       bounces=bounces, seed=seed, path=path, variant=variant, store=True,
+                       progress=progress)
+
+
+def _render(scene: Scene, light: Any, view: View, *, width: int, height: int, spp: int,
+            bounces: int, seed: int, path: Path, variant: str, store: bool,
+            progress: bool) -> Reference:
+    import mitsuba as mi
+
+    from .imageio import display, write_exr
 
     start = time.perf_counter()
     mi_scene = mi.load_dict(mitsuba_scene_dict(scene, light, view, width=width, height=height,
@@ -473,7 +491,7 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
                            mask, scale)
     ref = Reference(image=image, spp=spp, noise_rmse=noise, noise_rmse_display=noise_display,
                     variant=variant, path=path, seconds=seconds)
-    if use_cache:
+    if store:
         metadata = {
             "prtbench_reference": str(REFERENCE_VERSION), "kind": reference_kind(),
             "spp": str(spp), "variant": variant, "mitsuba_version": mi.__version__,

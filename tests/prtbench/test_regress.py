@@ -209,9 +209,12 @@ def _flat(image, mask):
     return out
 
 
-def test_the_real_vertex_case_passes_and_leaves_the_session_cache_alone(capsys):
+def test_the_real_vertex_case_passes_and_leaves_the_session_cache_alone(capsys, monkeypatch,
+                                                                       tmp_path):
     from prtbench.cache import cache_root
 
+    # A cache of this test's own: the run's shared cache changes under other xdist workers.
+    monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "session-cache"))
     before = set(cache_root().rglob("*")) if cache_root().exists() else set()
     assert regress(methods=["vertex"]) is True, capsys.readouterr().out
     out = capsys.readouterr().out

@@ -8,17 +8,17 @@ from pathlib import Path
 import pytest
 
 from prtbench.cache import cache_root
+from tests.conftest import run_root
 
 
 @pytest.fixture(scope="module")
 def cache_seen_by_a_module_fixture() -> Path:
-    # Trained networks and transfer live in module-scoped fixtures; they must see the session
+    # Trained networks and transfer live in module-scoped fixtures; they must see the run's
     # cache, not ~/.cache/prtbench.
     return cache_root()
 
 
 def test_module_fixtures_use_the_session_cache(cache_seen_by_a_module_fixture,
                                                tmp_path_factory):
-    base = tmp_path_factory.getbasetemp()
-    assert cache_seen_by_a_module_fixture.is_relative_to(base)
-    assert Path(os.environ["PRTBENCH_RESULTS"]).is_relative_to(base)
+    assert cache_seen_by_a_module_fixture.is_relative_to(run_root(tmp_path_factory))
+    assert Path(os.environ["PRTBENCH_RESULTS"]).is_relative_to(tmp_path_factory.getbasetemp())
