@@ -45,7 +45,7 @@ def _signals(n: int, d: int, *, clusters: int = 32, rank: int = 6, seed: int = 0
 
 
 def bench_fit(signals, clusters, dimension, pca_vectors, iterations) -> None:
-    from prtbench.compress import fit_cpca
+    from prtbench.transport.compress import fit_cpca
 
     print("N, K, n', d, wall s, iterations, s/iteration, peak extra / input")
     for n in signals:
@@ -64,11 +64,10 @@ def bench_fit(signals, clusters, dimension, pca_vectors, iterations) -> None:
 
 
 def bench_frames() -> None:
-    from prtbench.lights import get_light
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.scene import get_scene
-
-    import methods.vertex_glossy  # noqa: F401
+    import methods.vertex.glossy  # noqa: F401
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import get_light
 
     scene = get_scene("plants", variant="glossy", ground_subdivisions=32)
     cls = METHODS.get("sloan-matrix")

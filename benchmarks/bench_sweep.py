@@ -128,7 +128,7 @@ def _children_cpu() -> float:
 
 def _render_references(cells, profile: str, prepare_cell) -> None:
     """The path references of every distinct (scene, light, views) of ``cells``, into the cache."""
-    from prtbench.reference import render_references
+    from prtbench.render.reference import render_references
 
     seen = set()
     for cell in cells:

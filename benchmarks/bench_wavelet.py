@@ -3,7 +3,7 @@
     python benchmarks/bench_wavelet.py [--scene plants] [--points 2048] [--cubemap 32]
                                        [--threads 1,CORES] [--rounds 3] [--no-relight]
 
-1. Precompute: :func:`prtbench.wavelet.transport.compute_wavelet_transport` (rays, trace,
+1. Precompute: :func:`prtbench.transport.wavelet.transport.compute_wavelet_transport` (rays, trace,
    Haar, truncation, sparse build) against a bare embreex ``OCCLUDED`` query over exactly the
    rays it traces (same origins, directions, chunking into ≤ 2²¹-ray calls), both on the same
    number of precompute threads, for each of ``--threads`` (default: 1 and all usable cores),
@@ -45,9 +45,9 @@ def _best(fn, rounds: int) -> float:
 
 def _rays(tracer, points, normals, n):
     """The (origins, directions) compute_wavelet_transport traces, in its order."""
-    from prtbench.raytrace import offset_origins
-    from prtbench.wavelet.cubemap import subsample_pattern
-    from prtbench.wavelet.transport import cosines
+    from prtbench.transport.raytrace import offset_origins
+    from prtbench.transport.wavelet.cubemap import subsample_pattern
+    from prtbench.transport.wavelet.transport import cosines
 
     dirs, _ = subsample_pattern(n, 1)
     d32 = dirs.reshape(-1, 3).astype(np.float32)
@@ -67,14 +67,14 @@ def main() -> int:
     parser.add_argument("--no-relight", action="store_true", help="skip part 2")
     args = parser.parse_args()
 
-    from prtbench.lights import get_light
-    from prtbench.parallel import available_cores, map_chunks, parallel_chunks
-    from prtbench.raytrace import CHUNK_RAYS, Tracer
-    from prtbench.scene import get_scene
-    from prtbench.wavelet import haar
-    from prtbench.wavelet.cubemap import light_cubemap
-    from prtbench.wavelet.selection import select_terms
-    from prtbench.wavelet.transport import compute_wavelet_transport
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import get_light
+    from prtbench.transport.parallel import available_cores, map_chunks, parallel_chunks
+    from prtbench.transport.raytrace import CHUNK_RAYS, Tracer
+    from prtbench.transport.wavelet import haar
+    from prtbench.transport.wavelet.cubemap import light_cubemap
+    from prtbench.transport.wavelet.selection import select_terms
+    from prtbench.transport.wavelet.transport import compute_wavelet_transport
 
     counts = sorted({int(t) for t in args.threads.split(",")} if args.threads
                     else {1, available_cores()})

@@ -3,13 +3,13 @@
     python benchmarks/bench_wavelet_tp.py [--points 1024] [--cubemaps 8 16 32] [--frames 5]
 
 Signals are real ones from ``sphere-over-plane`` (glossy): per vertex the Haar visibility
-(:func:`~prtbench.wavelet.transport.compute_wavelet_transport` with ``cosine=False``, truncated
+(:func:`~prtbench.transport.wavelet.transport.compute_wavelet_transport` with ``cosine=False``, truncated
 to the ``keep`` fraction), the glossy Phong factor for the vertex's own mirror direction of the
-first trajectory view (:func:`prtbench.wavelet.brdf.project`, ``brdf_keep`` terms) and the
+first trajectory view (:func:`prtbench.transport.wavelet.brdf.project`, ``brdf_keep`` terms) and the
 ``sky`` light cut to its k largest (area-weighted) coefficients. For each cubemap N and each
 sparsity (k, keep, brdf_keep) it times, median of ``--frames`` runs, on one thread:
 
-* ``tree``: :func:`prtbench.wavelet.triple.triple_product` from the sparse coefficients
+* ``tree``: :func:`prtbench.transport.wavelet.triple.triple_product` from the sparse coefficients
   (including the light's parent sums, as a frame does);
 * ``texel``: the product it replaces, Σ_t L_t V_t ρ̃_t over all 6N² texels per vertex from
   texel-domain arrays already in memory (the cheapest brute force: the inverse transforms are
@@ -59,14 +59,18 @@ def main() -> int:
     args = parser.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-    from prtbench.lights import get_light
-    from prtbench.scene import get_scene
-    from prtbench.wavelet import brdf, haar, selection
-    from prtbench.wavelet.cubemap import light_cubemap
-    from prtbench.wavelet.transport import compute_wavelet_transport
-    from prtbench.wavelet.triple import SparseRows, brute_force, mean_pyramid, triple_product
-
-    import methods.wavelet_tp as wtp  # the renderer's column → row conversion
+    import methods.wavelet.tp as wtp  # the renderer's column → row conversion
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import get_light
+    from prtbench.transport.wavelet import brdf, haar, selection
+    from prtbench.transport.wavelet.cubemap import light_cubemap
+    from prtbench.transport.wavelet.transport import compute_wavelet_transport
+    from prtbench.transport.wavelet.triple import (
+        SparseRows,
+        brute_force,
+        mean_pyramid,
+        triple_product,
+    )
 
     scene = get_scene("sphere-over-plane", variant="glossy", plane_subdivisions=16)
     positions, normals, _, _ = scene.merged()

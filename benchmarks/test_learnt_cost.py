@@ -17,9 +17,9 @@ from __future__ import annotations
 import pytest
 
 import methods.learnt  # noqa: F401 - registers "learnt"
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import get_scene
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import get_scene
+from prtbench.transport.lights import get_light
 
 RESOLUTIONS = [(320, 240), (640, 480)]
 WARMUP, FRAMES = 2, 5

@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
-from methods import SHADER_DIR
-from methods._raster import clip_planes
-from methods.texture.atlas import AtlasMesh
-from prtbench import gl
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import get_scene
+from methods.common.atlas.atlas import AtlasMesh
+from methods.texture import SHADER_DIR
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.render import gl
+from prtbench.render.raster import clip_planes
+from prtbench.scene.model import get_scene
+from prtbench.transport.lights import get_light
 
 RESOLUTIONS = [(320, 240), (640, 480)]
 WARMUP, FRAMES = 2, 5

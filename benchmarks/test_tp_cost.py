@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-import methods.vertex_glossy  # noqa: F401  (registers the methods)
-from methods import _triple
-from prtbench.errors import PrtbenchError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import get_scene
+import methods.vertex.glossy  # noqa: F401  (registers the methods)
+from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.render import prt_shading as _triple
+from prtbench.scene.model import get_scene
+from prtbench.transport.lights import get_light
 
 BANDS = (3, 4, 5, 6, 7, 8)
 METHOD_NAMES = ("vertex-tp", "vertex-tpfl", "sloan-matrix")

@@ -24,11 +24,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-
-from prtbench.parallel import available_cores
-from prtbench.transfer import compute_transfer
-
 from transfer_rays import transfer_rays
+
+from prtbench.transport.parallel import available_cores
+from prtbench.transport.transfer import compute_transfer
 
 ROUNDS = 7
 

@@ -18,10 +18,9 @@ import time
 
 import numpy as np
 import pytest
-
-from prtbench.transfer import compute_transfer
-
 from transfer_rays import transfer_rays
+
+from prtbench.transport.transfer import compute_transfer
 
 ROUNDS = 5
 

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.errors import PrtbenchError
-from prtbench.raytrace import Tracer, offset_origins
-from prtbench.scene import Scene, get_scene
-from prtbench.transfer import RayPattern
+from prtbench.api.errors import PrtbenchError
+from prtbench.scene.model import Scene, get_scene
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.transfer import RayPattern
 
 
 def benchmark_scene() -> Scene:

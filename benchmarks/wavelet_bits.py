@@ -4,7 +4,7 @@
     python benchmarks/wavelet_bits.py compare REF.npz   # after it: exit 1 unless every array
                                                         # is np.array_equal to the reference
 
-Computes :func:`prtbench.wavelet.transport.compute_wavelet_transport` on ``plants`` and
+Computes :func:`prtbench.transport.wavelet.transport.compute_wavelet_transport` on ``plants`` and
 ``sphere-over-plane`` over a spread of options (the benchmark's case, float32/int8 storage,
 texel subsamples, the unshadowed and visibility-only transports, lobes), and stores every array
 of every transport. A speedup of the precompute must leave all of them unchanged.
@@ -46,9 +46,9 @@ def _lobes(sl: slice, dirs_t: np.ndarray) -> np.ndarray:
 
 def transports() -> dict[str, np.ndarray]:
     """Every array of every case's transport, as ``{"case/array": array}``."""
-    from prtbench.raytrace import Tracer
-    from prtbench.scene import get_scene
-    from prtbench.wavelet.transport import compute_wavelet_transport
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.raytrace import Tracer
+    from prtbench.transport.wavelet.transport import compute_wavelet_transport
 
     out = {}
     scenes = {}

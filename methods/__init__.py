@@ -1,7 +1,8 @@
-"""methods plug-ins for prtbench (registered through entry points in pyproject.toml)."""
+"""Built-in PRT methods of prtbench, one folder per family.
 
-from pathlib import Path
-
-#: The methods' own GLSL stages and includes, passed to ``prtbench.gl.load_program`` as
-#: ``search_path`` (the core's shared shaders in ``prtbench/shaders`` are always searched too).
-SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+Each family folder holds a light ``spec.py`` (method names -> ``"module:Class"`` and one-line
+summaries; discovered by :mod:`prtbench.api.plugins`, no ``pyproject.toml`` entry needed), its
+code, and its GLSL in ``shaders/``. Code several families share lives in :mod:`methods.common`;
+what the harness needs from a method is declared on :class:`prtbench.api.method.Method`.
+See ``docs/ADDING_A_METHOD.md``.
+"""

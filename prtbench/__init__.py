@@ -2,7 +2,7 @@
 
 The core package knows nothing about any particular method, scene or paper table: those live
 in the ``methods``, ``scenes`` and ``reproductions`` packages and register themselves into the
-core's registries (see :mod:`prtbench.registry`).
+core's registries (see :mod:`prtbench.api.registry`).
 """
 
 import os as _os

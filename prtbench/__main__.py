@@ -2,7 +2,7 @@
 
 import sys
 
-from .cli import main
+from prtbench.cli import main
 
 if __name__ == "__main__":  # importing the module (package walks, docs) runs nothing
     sys.exit(main())

@@ -3,7 +3,7 @@
 Figures run their cells through the ordinary runner (:func:`run_cells`), so every number a
 figure prints is a stored result row, and the panels are the very images the runner measured
 (written as EXR/PNG into a scratch folder), stored with the figure's report run. Wireframes
-come from a small GL pass (``methods/shaders/wireframe.{vert,frag}``); labelled grids and plots
+come from a small GL pass (``prtbench/render/shaders/wireframe.{vert,frag}``); labelled grids and plots
 are drawn with matplotlib in :mod:`reproductions._plots`.
 """
 
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.reproduction import Cell
+from prtbench.bench.reproduction import Cell
 
 #: Inset outline and wireframe colours (display space, RGB in [0, 1]).
 INSET_BORDER = (1.0, 1.0, 1.0)
@@ -65,7 +65,7 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None,
         ``views`` of each cell is honoured (figures use 1).
     profile : str
     results_path : Path or None
-        Results store (default: :func:`prtbench.results.default_path`).
+        Results store (default: :func:`prtbench.store.results.default_path`).
     progress : bool
     tag : str
         Prefix of the progress lines on stderr.
@@ -74,9 +74,9 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None,
     -------
     list of CellRun, in cell order.
     """
-    from prtbench import imageio
-    from prtbench.results import load
-    from prtbench.runner import RunRequest, execute, prepare
+    from prtbench.bench.runner import RunRequest, execute, prepare
+    from prtbench.io import imageio
+    from prtbench.store.results import load
 
     with tempfile.TemporaryDirectory(prefix="prtbench-figure-") as tmp:
         requests = [RunRequest(
@@ -145,12 +145,11 @@ def render_wireframe(scene, view, *, width: int, height: int, line_width: float 
     geometry : ndarray, shape (height, width), bool
         Pixels covered by any triangle.
     """
-    from methods import SHADER_DIR
-    from methods._raster import clip_planes
-    from prtbench import gl
+    from prtbench.render import gl
+    from prtbench.render.raster import clip_planes
 
     ctx = gl.create_context()
-    program = gl.load_program(ctx, "wireframe.vert", "wireframe.frag", search_path=[SHADER_DIR])
+    program = gl.load_program(ctx, "wireframe.vert", "wireframe.frag")
     positions, _, faces, _ = scene.merged()
     corners = np.asarray(positions, np.float32)[np.asarray(faces).reshape(-1)]  # (3F, 3)
     bary = np.tile(np.eye(3, dtype=np.float32), (len(faces), 1))  # (3F, 3)
@@ -237,7 +236,7 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list
 
 def write_caption(path: Path, lines: Sequence[str]) -> Path:
     """Atomically write a caption markdown file."""
-    from prtbench.cache import atomic_path
+    from prtbench.api.cache import atomic_path
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:

@@ -37,7 +37,7 @@ def _pyplot():
 
 def save(figure, path: Path) -> Path:
     """Write ``figure`` as a PNG at :data:`DPI` atomically, then close it."""
-    from prtbench.cache import atomic_path
+    from prtbench.api.cache import atomic_path
 
     plt = _pyplot()
     buf = io.BytesIO()

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
-
-from . import _panels
-from .table_3_1 import ensure_texture_methods, scene_choices
+from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
+from reproductions import _panels
+from reproductions.table_3_1 import ensure_texture_methods, scene_choices
 
 #: Ground (or floor) quads per side of the high-tessellation column: 2·64² = 8192 triangles.
 HIGH_SUBDIVISIONS = 64
@@ -77,7 +76,8 @@ class Figure34(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench import imageio, measurements
+        from prtbench.io import imageio
+        from prtbench.store import measurements
 
         runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
@@ -99,7 +99,7 @@ class Figure34(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         frame, images = stored.frame(), stored.images()

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
-
-from . import _panels
-from .table_3_1 import ensure_texture_methods
+from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
+from reproductions import _panels
+from reproductions.table_3_1 import ensure_texture_methods
 
 #: (our scene, variant, the paper scene it stands for).
 SCENES = (("lion", "diffuse", "Monkey (diffuse)"), ("bust", "glossy", "Roza (glossy)"))
@@ -45,8 +44,10 @@ class Figure35(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench import imageio, measurements, metrics
-        from prtbench.runner import geometry_mask
+        from prtbench.bench import metrics
+        from prtbench.bench.runner import geometry_mask
+        from prtbench.io import imageio
+        from prtbench.store import measurements
 
         runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
@@ -73,7 +74,7 @@ class Figure35(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         frame, images = stored.frame(), stored.images()

@@ -21,10 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
-
-from . import _panels
-from .table_3_1 import ensure_texture_methods
+from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
+from reproductions import _panels
+from reproductions.table_3_1 import ensure_texture_methods
 
 SCENE = "room"
 VARIANT = "glossy"
@@ -48,10 +47,10 @@ def render_direct(*, method: str, scene, profile: str, width: int, height: int,
         ``image`` (H, W, 3) linear float32, ``frame_ms``, ``frame_ms_p95``, ``memory_bytes``,
         ``renderer``, ``timing_source``, ``config`` (dict).
     """
-    from prtbench import config as config_mod
-    from prtbench.lights import get_light
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.profiles import get_profile
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.api.profiles import get_profile
+    from prtbench.transport.lights import get_light
 
     cls = METHODS.get(method)
     config = cls.make_config(profile=profile)
@@ -88,9 +87,10 @@ class Figure36(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench import imageio, measurements
-        from prtbench.runner import device_description
-        from prtbench.scene import get_scene
+        from prtbench.bench.runner import device_description
+        from prtbench.io import imageio
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
 
         cells = self.cells(profile)
         mapped_scene = get_scene(SCENE, variant=VARIANT, normal_mapped_floor=True).with_views(1)
@@ -121,7 +121,7 @@ class Figure36(Figure):
         return {plain.run_id: dict(plain.cell.label)}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         stored_rows, images = stored.frame(), stored.images()

@@ -14,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure, Stored, provenance_line
-
-from . import _panels
-from .table_4_1 import ensure_methods, learnt_overrides
+from prtbench.bench.reproduction import Figure, Stored, provenance_line
+from reproductions import _panels
+from reproductions.table_4_1 import ensure_methods, learnt_overrides
 
 #: Measurement table of the figure's numbers (one row per point; canvases as images).
 TABLE = "figure-4.11"
@@ -40,7 +39,7 @@ def colour_map(values: np.ndarray, *, top: float) -> np.ndarray:
 
 def canvas_directions() -> np.ndarray:
     """(H, W, 3) directions of the canvas texel centres (Mitsuba's lat-long mapping)."""
-    from prtbench.lights import lat_long_directions
+    from prtbench.transport.lights import lat_long_directions
 
     h, w = CANVAS
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
@@ -82,13 +81,13 @@ class Figure411(Figure):
                 progress: bool = True) -> dict[str, dict]:
         from methods.learnt.data import heldout_samples
         from methods.learnt.model import LearntModel
-        from prtbench import measurements
-        from prtbench.method import METHODS, load_or_precompute
-        from prtbench.raytrace import Tracer, offset_origins
-        from prtbench.runner import device_description
-        from prtbench.scene import get_scene
-        from prtbench.sh import eval_sh
-        from prtbench.transfer import compute_transfer
+        from prtbench.api.method import METHODS, load_or_precompute
+        from prtbench.bench.runner import device_description
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from prtbench.transport.raytrace import Tracer, offset_origins
+        from prtbench.transport.sh import eval_sh
+        from prtbench.transport.transfer import compute_transfer
 
         ensure_methods()
         scene = get_scene(self.scene_name)
@@ -138,7 +137,7 @@ class Figure411(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         table = stored.table(TABLE)

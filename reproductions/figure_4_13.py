@@ -14,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure, Stored, display_panels, provenance_line
-
-from . import _panels
-from .table_4_1 import ensure_methods, learnt_overrides
+from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line
+from reproductions import _panels
+from reproductions.table_4_1 import ensure_methods, learnt_overrides
 
 #: Width of the networks compared (the thesis does not state it; table 4.1's smaller one).
 WIDTH = 64
@@ -29,7 +28,7 @@ ORACLE_RAYS = 1024
 
 def white_scene(scene):
     """``scene`` with every material replaced by a white diffuse one ("albedo disabled")."""
-    from prtbench.scene import Material, SceneObject
+    from prtbench.scene.model import Material, SceneObject
 
     objects = [SceneObject(o.name, o.mesh, Material(kd=ALBEDO, name="white"))
                for o in scene.objects]
@@ -41,9 +40,9 @@ def traced_transfer_image(renderer, scene, view, light, *, bands: int) -> np.nda
     """Shade the transfer traced at each covered pixel of the torch renderer's G-buffer."""
     import torch
 
-    from methods._triple import tpfl_matrix_rgb
     from methods.learnt.torch_renderer import shade_torch
-    from prtbench.transfer import compute_transfer
+    from prtbench.render.prt_shading import tpfl_matrix_rgb
+    from prtbench.transport.transfer import compute_transfer
 
     renderer.render(view, light)  # fills the G-buffers
     g = [renderer.target.read(i) for i in range(4)]
@@ -75,14 +74,16 @@ class Figure413(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench import imageio, measurements, metrics
-        from prtbench.config import with_overrides
-        from prtbench.lights import get_light
-        from prtbench.method import METHODS, load_or_precompute
-        from prtbench.profiles import get_profile
-        from prtbench.reference import render_reference
-        from prtbench.runner import device_description, geometry_mask
-        from prtbench.scene import get_scene
+        from prtbench.api.config import with_overrides
+        from prtbench.api.method import METHODS, load_or_precompute
+        from prtbench.api.profiles import get_profile
+        from prtbench.bench import metrics
+        from prtbench.bench.runner import device_description, geometry_mask
+        from prtbench.io import imageio
+        from prtbench.render.reference import render_reference
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from prtbench.transport.lights import get_light
 
         ensure_methods()
         prof = get_profile(profile)
@@ -136,7 +137,7 @@ class Figure413(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         table = stored.table(TABLE)

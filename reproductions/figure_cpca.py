@@ -19,10 +19,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, Figure, display_panels, provenance_line
-
-from . import _panels
-from .table_cpca import CASES, LIGHT, SMOKE_CASES, form_facts, form_overrides
+from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
+from reproductions import _panels
+from reproductions.table_cpca import CASES, LIGHT, SMOKE_CASES, form_facts, form_overrides
 
 #: The CPCA form whose stored bytes set each case's budget: (K, n′) per profile.
 REFERENCE_FORM = {"smoke": (16, 2), "quick": (16, 4), "paper": (16, 4)}
@@ -40,9 +39,9 @@ def equal_memory_forms(*, n_signals: int, dimension: int, clusters: int, pca_vec
     """(K, n′) of PCA, VQ and CPCA storing at most the bytes of CPCA K × n′.
 
     PCA (K = 1) takes the most vectors and VQ (n′ = 0) the most clusters whose
-    :func:`~prtbench.compress.cpca.stored_bytes` fit the budget.
+    :func:`~prtbench.transport.compress.cpca.stored_bytes` fit the budget.
     """
-    from prtbench.compress import stored_bytes
+    from prtbench.transport.compress import stored_bytes
 
     def size(k: int, n: int) -> int:
         return stored_bytes(n_signals=n_signals, dimension=dimension, clusters=k,
@@ -56,8 +55,8 @@ def equal_memory_forms(*, n_signals: int, dimension: int, clusters: int, pca_vec
 
 
 def _case_forms(case, profile: str) -> dict[str, tuple[int, int]]:
-    from prtbench.method import METHODS
-    from prtbench.scene import get_scene
+    from prtbench.api.method import METHODS
+    from prtbench.scene.model import get_scene
 
     _, method, scene, variant, params, base = case
     bands = METHODS.get(method).make_config(base, profile=profile).sh_bands
@@ -77,7 +76,7 @@ class FigureCpca(Figure):
                      "models; `plants` is our procedural scene.",)
 
     def cells(self, profile: str) -> list[Cell]:
-        import methods.vertex_glossy  # noqa: F401  (registers sloan-matrix)
+        import methods.vertex.glossy  # noqa: F401  (registers sloan-matrix)
 
         cells = []
         for case in SMOKE_CASES if profile == "smoke" else CASES:
@@ -93,8 +92,10 @@ class FigureCpca(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench import imageio, measurements, metrics
-        from prtbench.runner import geometry_mask
+        from prtbench.bench import metrics
+        from prtbench.bench.runner import geometry_mask
+        from prtbench.io import imageio
+        from prtbench.store import measurements
 
         runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
@@ -128,7 +129,7 @@ class FigureCpca(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from . import _plots
+        from reproductions import _plots
 
         profile = stored.profile
         frame, images = stored.frame(), stored.images()

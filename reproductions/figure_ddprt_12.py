@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.api.cache import atomic_path
+from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "lion"
 SCENE_PARAMS = {"ground_subdivisions": 48}  # fair to vertex PRT: its ground can hold a shadow
@@ -34,7 +34,7 @@ SETTINGS = {
 
 def unlit_mask(scene, view, width: int, height: int, direction: np.ndarray) -> np.ndarray:
     """(H, W) bool: geometry pixels whose surface faces away from ``direction`` or is shadowed."""
-    from prtbench.raytrace import Tracer, offset_origins
+    from prtbench.transport.raytrace import Tracer, offset_origins
 
     tracer = Tracer.from_scene(scene)
     origins, dirs = view.primary_rays(width, height)
@@ -72,18 +72,18 @@ class FigureDdprt12(Figure):
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
         import methods.data_driven  # noqa: F401 - registers the method
-        import methods.vertex  # noqa: F401
+        import methods.vertex.diffuse  # noqa: F401
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import measurements, metrics
-        from prtbench.imageio import display
-        from prtbench.lights import SUN_DIRECTION, get_light
-        from prtbench.method import METHODS, load_or_precompute
-        from prtbench.profiles import get_profile
-        from prtbench.reference import render_reference
-        from prtbench.runner import device_description, geometry_mask
-        from prtbench.scene import get_scene
-
-        from . import _panels
+        from prtbench.api.method import METHODS, load_or_precompute
+        from prtbench.api.profiles import get_profile
+        from prtbench.bench import metrics
+        from prtbench.bench.runner import device_description, geometry_mask
+        from prtbench.io.imageio import display
+        from prtbench.render.reference import render_reference
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from prtbench.transport.lights import SUN_DIRECTION, get_light
+        from reproductions import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE, **SCENE_PARAMS).with_views(1)
@@ -140,7 +140,7 @@ class FigureDdprt12(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _panels, _plots
+        from reproductions import _panels, _plots
 
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.api.cache import atomic_path
+from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 COUNTS = (1, 2, 4, 8, 16, 32, 64)
 RIDGES = (1e-3, 1e-2)
@@ -76,12 +76,13 @@ class FigureDdprt14(Figure):
         from methods.data_driven.dataset import build_dataset
         from methods.data_driven.evaluation import image_study, lightmap_study, reference_lightmaps
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import gl, measurements
-        from prtbench.imageio import display
-        from prtbench.lights import get_light
-        from prtbench.profiles import get_profile
-        from prtbench.runner import device_description
-        from prtbench.scene import get_scene
+        from prtbench.api.profiles import get_profile
+        from prtbench.bench.runner import device_description
+        from prtbench.io.imageio import display
+        from prtbench.render import gl
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from prtbench.transport.lights import get_light
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         counts = settings["counts"]
@@ -126,7 +127,7 @@ class FigureDdprt14(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _panels, _plots
+        from reproductions import _panels, _plots
 
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])

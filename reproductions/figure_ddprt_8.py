@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.api.cache import atomic_path
+from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE = "room"
 #: Measurement table of the figure's numbers (one row per light).
@@ -47,13 +47,13 @@ class FigureDdprt8(Figure):
         from methods.data_driven.evaluation import held_out, image_study
         from methods.data_driven.lights import DirectionalLight
         from methods.data_driven.method import DataDrivenPRT
-        from prtbench import gl, measurements
-        from prtbench.imageio import display
-        from prtbench.profiles import get_profile
-        from prtbench.runner import device_description
-        from prtbench.scene import get_scene
-
-        from . import _panels
+        from prtbench.api.profiles import get_profile
+        from prtbench.bench.runner import device_description
+        from prtbench.io.imageio import display
+        from prtbench.render import gl
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from reproductions import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE)
@@ -97,7 +97,7 @@ class FigureDdprt8(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _panels, _plots
+        from reproductions import _panels, _plots
 
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])

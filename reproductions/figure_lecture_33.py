@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.cache import atomic_path
-from prtbench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.api.cache import atomic_path
+from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
 
 SCENE, VARIANT, LIGHT = "plants", "glossy", "city"
 CURVE_LIGHTS = ("sun", "sunset", "city")
@@ -56,11 +56,15 @@ def lighting_errors(light, n: int, *, max_bands: int, terms=CURVE_TERMS) -> list
     list of dict
         ``light``, ``basis`` ("sh", "wavelet-area", "wavelet-magnitude"), ``terms``, ``rel_l2``.
     """
-    from methods.wavelet_image import SH_TEXEL_SAMPLES
-    from prtbench.sh import eval_sh
-    from prtbench.wavelet import haar
-    from prtbench.wavelet.cubemap import light_cubemap, subsample_pattern, texel_solid_angles
-    from prtbench.wavelet.selection import approximate
+    from methods.wavelet.image import SH_TEXEL_SAMPLES
+    from prtbench.transport.sh import eval_sh
+    from prtbench.transport.wavelet import haar
+    from prtbench.transport.wavelet.cubemap import (
+        light_cubemap,
+        subsample_pattern,
+        texel_solid_angles,
+    )
+    from prtbench.transport.wavelet.selection import approximate
 
     cube = light_cubemap(light, n)  # (6, N, N, 3)
     omega = texel_solid_angles(n)[..., None]
@@ -116,15 +120,16 @@ class FigureLecture33(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from methods.wavelet_image import WaveletImage
-        from prtbench import measurements, metrics
-        from prtbench.imageio import display
-        from prtbench.lights import get_light
-        from prtbench.method import load_or_precompute
-        from prtbench.profiles import get_profile
-        from prtbench.reference import render_reference
-        from prtbench.runner import device_description, geometry_mask
-        from prtbench.scene import get_scene
+        from methods.wavelet.image import WaveletImage
+        from prtbench.api.method import load_or_precompute
+        from prtbench.api.profiles import get_profile
+        from prtbench.bench import metrics
+        from prtbench.bench.runner import device_description, geometry_mask
+        from prtbench.io.imageio import display
+        from prtbench.render.reference import render_reference
+        from prtbench.scene.model import get_scene
+        from prtbench.store import measurements
+        from prtbench.transport.lights import get_light
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         width, height = settings["image"]
@@ -181,7 +186,7 @@ class FigureLecture33(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from . import _panels, _plots
+        from reproductions import _panels, _plots
 
         table, curve = stored.table(TABLE), stored.table(CURVE)
         records = _panels.records(table)
@@ -219,7 +224,7 @@ class FigureLecture33(Figure):
         return [png, curve_png, csv_path, md]
 
     def _plot_curve(self, curve, path: Path) -> Path:
-        from . import _plots
+        from reproductions import _plots
 
         plt = _plots._pyplot()
         lights = list(dict.fromkeys(curve["light"]))

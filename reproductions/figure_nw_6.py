@@ -16,7 +16,7 @@ view, the first held-out light):
 pixel's first hit x (the G-buffer the renderer uses) ``gather`` directions ω are drawn half
 cosine-weighted about n, half from the Phong lobe about r = reflect(ωo, n) (balance-heuristic
 mixture pdf), traced to their first front-face hit q, and the glossy direct transport of q
-towards x is the wavelet machinery's (:func:`prtbench.wavelet.transport.compute_wavelet_transport`
+towards x is the wavelet machinery's (:func:`prtbench.transport.wavelet.transport.compute_wavelet_transport`
 with the diffuse and Phong lobes of q as rows, solid angles folded in, exact visibility, in
 Haar); then T_j,c(x) = 1/M Σ f_c(x; ω, ωo) max(n·ω, 0) / pdf(ω) · (kd_c(q)/π D_j(q) + ks_c(q)
 S_j(q)). Checked against Mitsuba: Σ_j L_j T_j at the sampled pixels beside the Mitsuba
@@ -33,9 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.reproduction import Figure, provenance_line, write_csv
-
-from . import table_nw_common as nw
+from prtbench.bench.reproduction import Figure, provenance_line, write_csv
+from reproductions import table_nw_common as nw
 
 TABLE = "figure-nw-6"
 #: Sampled pixels and gather rays per pixel of the ground truth, per profile.
@@ -89,8 +88,8 @@ def gather_directions(n, r, s, glossy, m: int, rng):
 def ground_truth_transport(scene, rows: dict, *, n: int, gather: int, seed: int,
                            progress: bool = False) -> np.ndarray:
     """One-bounce Haar transport (P, 6N², 3) of the G-buffer ``rows`` (module docstring)."""
-    from prtbench.raytrace import Tracer, offset_origins
-    from prtbench.wavelet.transport import compute_wavelet_transport, cosines
+    from prtbench.transport.raytrace import Tracer, offset_origins
+    from prtbench.transport.wavelet.transport import compute_wavelet_transport, cosines
 
     tracer = Tracer.from_scene(scene)
     positions, vnormals, faces, object_of_face = scene.merged()
@@ -176,14 +175,14 @@ class FigureNw6(Figure):
                 progress: bool = True) -> dict[str, dict]:
         import torch
 
-        from prtbench import measurements
-        from prtbench.lights import get_light
-        from prtbench.neural_wavelet.data import light_coefficients
-        from prtbench.neural_wavelet.gbuffer import GBufferPass, pixel_rows
-        from prtbench.neural_wavelet.model import PixelInputs
-        from prtbench.runner import device_description
-        from prtbench.wavelet import haar
-        from prtbench.wavelet.selection import scores
+        from methods.neural_wavelet.data import light_coefficients
+        from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
+        from methods.neural_wavelet.model import PixelInputs
+        from prtbench.bench.runner import device_description
+        from prtbench.store import measurements
+        from prtbench.transport.lights import get_light
+        from prtbench.transport.wavelet import haar
+        from prtbench.transport.wavelet.selection import scores
 
         st = nw.setup(profile)
         config = nw.nw_config(profile)
@@ -222,7 +221,7 @@ class FigureNw6(Figure):
         nw.log("nw6", f"ground-truth transport of {len(pick)} pixels x {gather} gather rays, "
                       f"6x{n}x{n} wavelets")
         gt = ground_truth_transport(scene, rows, n=n, gather=gather, seed=SEED)
-        from prtbench.neural_wavelet.model import NeuralWaveletModel
+        from methods.neural_wavelet.model import NeuralWaveletModel
 
         model = NeuralWaveletModel.from_arrays(artifact.arrays)
         inputs = PixelInputs(*(torch.as_tensor(rows[k]) for k in
@@ -270,7 +269,7 @@ class FigureNw6(Figure):
         return {}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from . import _panels, _plots
+        from reproductions import _panels, _plots
 
         table = stored.table(TABLE)
         recs = _panels.records(table)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 #: (paper scene, paper triangle count as printed) in the paper's row order.
 PAPER_SCENES = (("Dragon", "1.3M"), ("TRM", "441K"), ("Room", "21K"), ("Plants", "18K"))
@@ -110,7 +110,7 @@ def scene_choices(profile: str) -> tuple[SceneChoice, ...]:
 
 def ensure_texture_methods() -> None:
     """Register ``texture-tp``/``texture-tpfl`` if their entry points are not installed yet."""
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     if "texture-tpfl" not in METHODS.names():
         import methods.texture  # noqa: F401 - registers itself
@@ -132,7 +132,7 @@ def our_fps(part) -> float:
 
 def substitution_lines(profile: str, measured: set[str]) -> list[str]:
     """One line per paper scene: which of our scenes stood in for it, and the scene's own text."""
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
 
     lines = []
     for choice in scene_choices(profile):

@@ -28,10 +28,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
-
-from .table_3_1 import (PAPER_SCENES, VARIANT, choice_notes, ensure_texture_methods,
-                        scene_choices, substitution_lines)
+from prtbench.bench.reproduction import Cell, Reproduction
+from reproductions.table_3_1 import (
+    PAPER_SCENES,
+    VARIANT,
+    choice_notes,
+    ensure_texture_methods,
+    scene_choices,
+    substitution_lines,
+)
 
 #: Row order of the storage schemes: (key, label, method or None for closed form only).
 SCHEMES = (("sloan", "Sloan et al. (vertex matrices)", "sloan-matrix"),
@@ -56,16 +61,16 @@ PAPER_TEXELS = 1024 * 1024
 
 def gamma_bytes(bands: int) -> int:
     """Bytes of the sparse Γ list the TP shaders read (8 per non-zero: index word + float),
-    as :mod:`methods._triple` uploads it."""
-    from methods._triple import gamma_buffer_data
+    as :mod:`prtbench.render.prt_shading` uploads it."""
+    from prtbench.render.prt_shading import gamma_buffer_data
 
     return len(gamma_buffer_data(bands))
 
 
 def tpfl_bytes(bands: int) -> int:
-    """Bytes of the fixed-light matrix M (n² × n² RGB entries) as :mod:`methods._triple`
+    """Bytes of the fixed-light matrix M (n² × n² RGB entries) as :mod:`prtbench.render.prt_shading`
     uploads it (its std140 layout pads each entry to a vec4: n⁴·16 bytes)."""
-    from methods._triple import tpfl_buffer_data
+    from prtbench.render.prt_shading import tpfl_buffer_data
 
     return len(tpfl_buffer_data(np.zeros((bands * bands, 3)), bands))
 
@@ -110,7 +115,7 @@ SCENE_TABLE = "table-3.2-scenes"
 
 def gl_storage_block_limit() -> int:
     """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of this machine's GL context (0 if unknown)."""
-    from prtbench import gl
+    from prtbench.render import gl
 
     return gl.storage_block_limit()
 
@@ -130,8 +135,8 @@ def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
     Checks the GL shader-storage block limit (``limit``; default this machine's), then the
     method's own validate (its ``max_bytes`` knob).
     """
-    from prtbench.errors import InvalidInputError
-    from prtbench.method import METHODS
+    from prtbench.api.errors import InvalidInputError
+    from prtbench.api.method import METHODS
 
     # The limit first: the method's validate checks the live GL too, and a report rebuilt
     # from the store must quote the limit its sweep ran under.
@@ -149,8 +154,8 @@ def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
 
 def _default_config(method: str, profile: str, paper_scene: str) -> dict:
     """The config ``method`` would have had in this sweep, as a dict (for rows not run)."""
-    from prtbench import config as config_mod
-    from prtbench.method import METHODS
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS
 
     choice = {c.paper: c for c in scene_choices(profile)}.get(paper_scene)
     overrides = choice.overrides(method) if choice is not None else {}
@@ -165,7 +170,7 @@ def _scene_of(row):
     """
     import inspect
 
-    from prtbench.scene import SCENES, get_scene
+    from prtbench.scene.model import SCENES, get_scene
 
     accepted = inspect.signature(SCENES.get(row["scene"])).parameters
     params = {k: v for k, v in json.loads(row["scene_params"]).items() if k in accepted}
@@ -176,8 +181,8 @@ def paper_scene_notes(profile: str, measured: set[str], *, limit: int) -> list[s
     """Closed forms of the vertex schemes on the paper profile's scenes, where this profile
     measured a lighter stand-in (e.g. ``dragon-lo`` for ``dragon`` in ``quick``); ``limit`` is
     the stored GL shader-storage block limit."""
-    from prtbench.errors import AssetMissingError
-    from prtbench.scene import get_scene
+    from prtbench.api.errors import AssetMissingError
+    from prtbench.scene.model import get_scene
 
     paper = {c.paper: c for c in scene_choices("paper")}
     notes = []
@@ -215,8 +220,8 @@ class Table32(Reproduction):
              "textures (McKenzie, ours), measured and in closed form")
 
     def cells(self, profile: str) -> list[Cell]:
-        from prtbench.method import METHODS
-        from prtbench.scene import get_scene
+        from prtbench.api.method import METHODS
+        from prtbench.scene.model import get_scene
 
         ensure_texture_methods()
         cells = []
@@ -241,7 +246,7 @@ class Table32(Reproduction):
         """This GL's shader-storage block limit, which the notes and refusals quote, and the
         object count of each run's scene, which the closed forms use (the vertex count is a
         column of every result row)."""
-        from prtbench import gl
+        from prtbench.render import gl
 
         scenes = []
         for run_id, run in frame.groupby("run_id", sort=False):
@@ -277,7 +282,7 @@ class Table32(Reproduction):
         return super().markdown(header, rows, profile=profile, frame=frame)
 
     def format(self, frame, *, profile: str):
-        from prtbench.method import METHODS
+        from prtbench.api.method import METHODS
 
         ensure_texture_methods()
         header = ["scene", "our scene", "our vertices", "our tris", "scheme", "method",

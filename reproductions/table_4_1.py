@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 SCENES = ("teaset", "plants", "bust", "dining-table")
 WIDTHS = (64, 128)
@@ -43,7 +43,7 @@ PAPER = {
 
 def ensure_methods() -> None:
     """Register ``learnt`` and the texture baseline if their entry points are not installed."""
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     if "learnt" not in METHODS.names():
         import methods.learnt  # noqa: F401 - registers itself
@@ -53,7 +53,7 @@ def ensure_methods() -> None:
 
 def baseline_bands(profile: str) -> int:
     """SH bands of the baseline as the runner builds it (its profile default)."""
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     ensure_methods()
     return int(METHODS.get(BASELINE).make_config(profile=profile).sh_bands)

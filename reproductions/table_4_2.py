@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 SCENES = ("sdf-car", "sdf-monster", "sdf-fish", "sdf-rabbit")
 SCENE_LABELS = {"sdf-car": "OLD-CAR", "sdf-monster": "MIKE-MONSTER", "sdf-fish": "FISH",
@@ -46,10 +46,10 @@ MC_RESOLUTION = {"smoke": 96, "quick": 256, "paper": 256}
 
 def ensure_method() -> None:
     """Register ``learnt-sdf`` if its entry point is not installed yet."""
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     if "learnt-sdf" not in METHODS.names():
-        import methods.learnt_sdf  # noqa: F401 - registers itself
+        import methods.learnt.sdf  # noqa: F401 - registers itself
 
 
 def learnt_sdf_overrides(k: int) -> dict:

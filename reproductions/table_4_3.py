@@ -12,10 +12,21 @@ Entry point: ``"4.3" = "reproductions.table_4_3:TABLE"``.
 
 from __future__ import annotations
 
-from prtbench.reproduction import Cell, Reproduction
-
-from .table_4_2 import (MC_RESOLUTION, TIMING_NOTE, TRAINING_NOTE, VARIANTS, VIEWS, WIDTHS,
-                        ensure_method, fps, learnt_sdf_overrides, mean, ratio, select)
+from prtbench.bench.reproduction import Cell, Reproduction
+from reproductions.table_4_2 import (
+    MC_RESOLUTION,
+    TIMING_NOTE,
+    TRAINING_NOTE,
+    VARIANTS,
+    VIEWS,
+    WIDTHS,
+    ensure_method,
+    fps,
+    learnt_sdf_overrides,
+    mean,
+    ratio,
+    select,
+)
 
 SCENE = "sdf-bunny-neural"
 SIZES = ("small", "large")
@@ -39,7 +50,7 @@ class Table43(Reproduction):
     substitutions = (
         "STANFORD-BUNNY neural SDF of Davies et al. 2021 (not available here) replaced by our own "
         "sine MLP of the same two sizes (k = 32 / 64, l = 2) fitted to the CGAL bunny "
-        "(`sdf-bunny-neural`, prtbench.neural_sdf), on a ground plane that is part of the SDF.",
+        "(`sdf-bunny-neural`, prtbench.transport.neural_sdf), on a ground plane that is part of the SDF.",
     )
 
     @property

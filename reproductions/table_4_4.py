@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
-
-from .table_4_1 import baseline_bands, ensure_methods
+from prtbench.bench.reproduction import Cell, Reproduction
+from reproductions.table_4_1 import baseline_bands, ensure_methods
 
 WIDTHS = (64, 128, 256, 512)
 RENDERERS = ("glsl", "torch")
@@ -35,8 +34,8 @@ def overrides(k: int, renderer: str, profile: str) -> dict:
 
 def glsl_refusal(k: int, profile: str) -> str | None:
     """Why the GLSL path refuses width ``k`` (None when it renders it)."""
-    from methods.learnt import LearntTransfer
     from methods.learnt.glsl import hardcoded_floats
+    from methods.learnt.method import LearntTransfer
     from methods.learnt.model import spec_of
 
     config = LearntTransfer.make_config(overrides(k, "glsl", profile), profile=profile)

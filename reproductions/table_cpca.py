@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 CLUSTERS = (1, 16, 64, 256)
 PCA_VECTORS = (0, 1, 2, 4, 8, 16)
@@ -77,7 +77,7 @@ def form_facts(rows) -> dict:
     Parameters
     ----------
     rows : pandas.DataFrame
-        Result rows of one run (as loaded by :func:`prtbench.results.load`).
+        Result rows of one run (as loaded by :func:`prtbench.store.results.load`).
 
     Returns
     -------
@@ -87,10 +87,10 @@ def form_facts(rows) -> dict:
         ``transfer_bytes`` (stored form / uncompressed float32 transfer), ``fit_s`` and
         ``iterations`` (NaN uncompressed).
     """
-    from prtbench import config as config_mod
-    from prtbench.compress import knobs
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.scene import get_scene
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.compress import knobs
 
     first = rows.iloc[0]
     scene = get_scene(first["scene"], variant=first["scene_variant"],
@@ -106,7 +106,7 @@ def form_facts(rows) -> dict:
                 "transfer_bytes": int(meta["uncompressed_bytes"]),
                 "fit_s": float(meta["fit_s"]), "iterations": int(meta["iterations"])}
     if "dense_float32_bytes" in meta:  # a sparse wavelet transport: against its dense rows
-        from prtbench.wavelet.sparse import SparseTransport
+        from prtbench.transport.wavelet.sparse import SparseTransport
 
         t = SparseTransport.from_arrays(artifact.arrays)
         values = t.values.astype(np.float64) * (1.0 if t.scale is None
@@ -160,7 +160,7 @@ class CpcaTable(Reproduction):
         known = [case[0] for case in OPTIONAL_CASES]
         unknown = [name for name in optional if name not in known]
         if unknown:
-            from prtbench.errors import UnknownNameError
+            from prtbench.api.errors import UnknownNameError
 
             raise UnknownNameError("optional table-cpca case", unknown[0], known)
         self.optional = tuple(optional)

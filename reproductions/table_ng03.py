@@ -18,7 +18,7 @@ import json
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 #: Scenes with the tessellation the vertex methods need to hold a shadow at all.
 SCENE_PARAMS = {"plants": {"ground_subdivisions": 32}, "room": {},
@@ -50,9 +50,9 @@ def transport_bytes(rows) -> dict:
     Wavelet artifacts record both (``dense_float32_bytes``, ``stored_bytes``); an SH
     artifact's transfer is stored dense, so both are its array bytes.
     """
-    from prtbench import config as config_mod
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.scene import get_scene
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.scene.model import get_scene
 
     first = rows.iloc[0]
     scene = get_scene(first["scene"], variant=first["scene_variant"],
@@ -95,10 +95,10 @@ class TableNg03(Reproduction):
         )
 
     def cells(self, profile: str) -> list[Cell]:
-        from prtbench.method import METHODS
+        from prtbench.api.method import METHODS
 
-        for name, module in (("wavelet-vertex", "methods.wavelet_vertex"),
-                             ("wavelet-texture", "methods.wavelet_texture")):
+        for name, module in (("wavelet-vertex", "methods.wavelet.vertex"),
+                             ("wavelet-texture", "methods.wavelet.texture")):
             if name not in METHODS.names():
                 __import__(module)
         scenes, lights = SETS.get(profile, SETS["quick"])

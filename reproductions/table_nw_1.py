@@ -23,9 +23,8 @@ Entry point: ``"nw-1" = "reproductions.table_nw_1:TABLE"``.
 
 from __future__ import annotations
 
-from prtbench.reproduction import Reproduction
-
-from . import table_nw_common as nw
+from prtbench.bench.reproduction import Reproduction
+from reproductions import table_nw_common as nw
 
 #: (label, description, neural-wavelet overrides or None for the SH baseline) in table order.
 CONFIGS = (

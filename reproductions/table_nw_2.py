@@ -18,9 +18,8 @@ Entry point: ``"nw-2" = "reproductions.table_nw_2:TABLE"``.
 
 from __future__ import annotations
 
-from prtbench.reproduction import Reproduction
-
-from . import table_nw_common as nw
+from prtbench.bench.reproduction import Reproduction
+from reproductions import table_nw_common as nw
 
 TERMS = (32, 64, 128)
 #: (lower, higher) resolution per profile; the paper's two are lost in our copy.
@@ -56,7 +55,7 @@ class TableNw2(Reproduction):
         )
 
     def measure(self, profile: str, *, results_path=None) -> list[str]:
-        from prtbench.lights import get_light
+        from prtbench.transport.lights import get_light
 
         st = nw.setup(profile)
         writer = nw.RowWriter(profile, "nw2")

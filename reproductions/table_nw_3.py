@@ -16,7 +16,7 @@ Entry point: ``"nw-3" = "reproductions.table_nw_3:TABLE"``.
 
 from __future__ import annotations
 
-from . import table_nw_common as nw
+from reproductions import table_nw_common as nw
 
 VALUES = {"smoke": (10, 12, 14), "quick": (14, 16, 18), "paper": (18, 19, 20)}
 #: Paper Table 3 (Four Animals, denoised): (T inferred, total size, PSNR, SSIM) full / indirect.

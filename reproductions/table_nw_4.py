@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from . import table_nw_common as nw
+from reproductions import table_nw_common as nw
 
 VALUES = {"smoke": (-1, 2), "quick": (-1, 2, 4, 6), "paper": (-1, 2, 4, 6, 8)}
 #: Paper Table 4 (Kitchen): (row, PSNR, SSIM) full / indirect.

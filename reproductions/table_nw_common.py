@@ -14,8 +14,8 @@ and it has no indirect-only metrics. Here every neural-wavelet model is trained 
 always under the method's held-out lights (never trained on).
 
 Per (view, light) three Mitsuba renders are cached: full (``bounces``) and direct-only with
-the same seed :data:`~prtbench.neural_wavelet.evaluate.EVAL_SEED` — their difference is the
-indirect-only reference, exactly as :mod:`prtbench.neural_wavelet.evaluate` forms it — and
+the same seed :data:`~reproductions.nw_evaluate.EVAL_SEED` — their difference is the
+indirect-only reference, exactly as :mod:`reproductions.nw_evaluate` forms it — and
 the method's own direct term (seed ``DIRECT_SEED``, ``direct_spp``). Every row's **full** image
 is its indirect + that same direct image, so the full columns compare the indirect transports
 alone, as the paper's variants share one direct term:
@@ -43,7 +43,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from prtbench.reproduction import Reproduction
+from prtbench.bench.reproduction import Reproduction
 
 #: Per profile: scene, builder parameters, views per view set, held-out lights used, SH
 #: baseline knobs. ``smoke`` runs in seconds on a procedural scene (no assets); ``quick`` is
@@ -80,18 +80,18 @@ class Setup:
 
 
 def nw_class():
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     if "neural-wavelet" not in METHODS.names():
-        import methods.neural_wavelet  # noqa: F401  (registers without a reinstall)
+        import methods.neural_wavelet.method  # noqa: F401  (registers without a reinstall)
     return METHODS.get("neural-wavelet")
 
 
 def sloan_class():
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     if "sloan-matrix" not in METHODS.names():
-        import methods.vertex_glossy  # noqa: F401
+        import methods.vertex.glossy  # noqa: F401
     return METHODS.get("sloan-matrix")
 
 
@@ -103,7 +103,7 @@ def nw_config(profile: str, **overrides):
 def far_views(scene, n: int):
     """A held-out trajectory for a scene without one: each view turned half a step about +Y
     around its target, raised by 15° and moved 1.3 × further out."""
-    from prtbench.scene import Trajectory, View
+    from prtbench.scene.model import Trajectory, View
 
     views = scene.trajectory.views
     step = 360.0 / max(len(views), 1)
@@ -124,9 +124,9 @@ def far_views(scene, n: int):
 
 def setup(profile: str) -> Setup:
     """The training scene, the far/near evaluation scenes and held-out lights of ``profile``."""
-    from prtbench.neural_wavelet.evaluate import require_glossy
-    from prtbench.profiles import get_profile
-    from prtbench.scene import get_scene
+    from prtbench.api.profiles import get_profile
+    from prtbench.scene.model import get_scene
+    from reproductions.nw_evaluate import require_glossy
 
     prof = get_profile(profile)
     spec = SETUPS[profile]
@@ -150,7 +150,7 @@ def train(config, st: Setup, *, progress: bool = True):
 
     Calls the method's precompute directly rather than the artifact cache: the trained model
     itself is cached by its data (training cameras included) and knobs
-    (:mod:`prtbench.neural_wavelet.train`), so this is a cache hit when trained before, and the
+    (:mod:`methods.neural_wavelet.train`), so this is a cache hit when trained before, and the
     precompute_s it returns is the recorded data + training time.
     """
     cls = nw_class()
@@ -167,9 +167,9 @@ class References:
         self.st, self.bounces, self.direct_spp = st, int(bounces), int(direct_spp)
 
     def get(self, scene, light, view):
-        from methods.neural_wavelet import DIRECT_SEED
-        from prtbench.neural_wavelet.evaluate import EVAL_SEED
-        from prtbench.reference import render_reference
+        from methods.neural_wavelet.method import DIRECT_SEED
+        from prtbench.render.reference import render_reference
+        from reproductions.nw_evaluate import EVAL_SEED
 
         kw = dict(width=self.st.width, height=self.st.height)
         full = render_reference(scene, light, view, spp=self.st.reference_spp,
@@ -183,8 +183,9 @@ class References:
 
 def image_metrics(scene, view, *, full, indirect, ref_full, ref_indirect, width, height):
     """Full-image metrics and ``indirect_``-prefixed indirect-only ones (masked and not)."""
-    from prtbench import imageio, metrics
-    from prtbench.runner import geometry_mask
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
 
     mask = geometry_mask(scene, view, width, height)
 
@@ -211,8 +212,8 @@ class RowWriter:
     """Builds the results-store rows of one reproduction run (one run id)."""
 
     def __init__(self, profile: str, tag: str):
-        from prtbench.results import git_sha
-        from prtbench.runner import device_description
+        from prtbench.bench.runner import device_description
+        from prtbench.store.results import git_sha
 
         self.profile, self.tag = profile, tag
         self.run_id = f"{tag}-{uuid.uuid4().hex[:8]}"
@@ -222,10 +223,10 @@ class RowWriter:
     def add(self, *, method: str, config, scene, light: str, view_index: int, view, label: dict,
             metrics: dict, width: int, height: int, memory_bytes, precompute_s, renderer: str,
             reference=None, frame=None, covered=None) -> None:
-        from prtbench import config as config_mod
-        from prtbench import strict_json
-        from prtbench.results import ResultRow
-        from prtbench.runner import load_average
+        from prtbench.api import config as config_mod
+        from prtbench.api import strict_json
+        from prtbench.bench.runner import load_average
+        from prtbench.store.results import ResultRow
 
         nulls = strict_json.non_finite_keys(metrics)
         self.rows.append(ResultRow(
@@ -246,7 +247,7 @@ class RowWriter:
             load_average=load_average()))
 
     def store(self, results_path) -> list[str]:
-        from prtbench.results import ResultsStore
+        from prtbench.store.results import ResultsStore
 
         ResultsStore(results_path).append(self.rows)
         return [self.run_id]
@@ -267,7 +268,7 @@ def measure_nw(writer: RowWriter, st: Setup, config, label: dict, *, view_sets=V
         renderer = cls.renderer(scene, artifact, config, width=st.width, height=st.height)
         try:
             for light_name in st.lights:
-                from prtbench.lights import get_light
+                from prtbench.transport.lights import get_light
 
                 light = get_light(light_name)
                 for index, view in enumerate(scene.trajectory.views):
@@ -306,11 +307,11 @@ def check_sloan(st: Setup, *, bounces: int) -> None:
     this GL's shader-storage block limit (named with the profile, before the method's own
     validate checks it in its terms), then its validate (``max_bytes``); InvalidInputError,
     exit 2."""
-    from prtbench import gl
-    from prtbench.errors import InvalidInputError
+    from prtbench.api.errors import InvalidInputError
+    from prtbench.render import gl
 
-    cls = sloan_class()  # registers methods.vertex_glossy
-    from methods.vertex_glossy import matrix_bytes, matrix_channels
+    cls = sloan_class()  # registers methods.vertex.glossy
+    from methods.vertex.glossy import matrix_bytes, matrix_channels
 
     limit = gl.storage_block_limit()
     for b in (bounces, 0):
@@ -331,8 +332,8 @@ def measure_sloan(writer: RowWriter, st: Setup, label: dict, *, bounces: int, di
                   view_sets=VIEW_SETS, progress: bool = True) -> None:
     """The SH baseline: ``sloan-matrix`` with ``bounces`` minus its ``bounces=0`` render is its
     indirect; its full image is that + the neural rows' direct image (same call, cached)."""
-    from prtbench.lights import get_light
-    from prtbench.method import load_or_precompute
+    from prtbench.api.method import load_or_precompute
+    from prtbench.transport.lights import get_light
 
     cls = sloan_class()
     configs = {b: sloan_config(st.profile, bounces=b) for b in (bounces, 0)}

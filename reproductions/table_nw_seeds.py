@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from . import table_nw_common as nw
+from reproductions import table_nw_common as nw
 
 VALUES = {"smoke": (0, 1), "quick": (0, 1, 2), "paper": (0, 1, 2)}
 

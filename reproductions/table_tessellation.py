@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 #: Ground subdivisions k give 2·k² ground triangles: 2, 128, 8192, 524288.
 GROUND_SUBDIVISIONS = (1, 8, 64, 512)

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.reproduction import Cell, Reproduction
+from prtbench.bench.reproduction import Cell, Reproduction
 
 #: Probes per axis of the sweep.
 RESOLUTIONS = (4, 8, 16, 32)
@@ -41,8 +41,8 @@ LEAK_TABLE = "table-volume-leak"
 
 
 def _registered_methods() -> list[str]:
-    import methods.irradiance_volume  # noqa: F401 - registers itself before the entry point exists
-    from prtbench.method import METHODS
+    import methods.irradiance_volume.method  # noqa: F401 - registers itself before the entry point exists
+    from prtbench.api.method import METHODS
 
     return [m for m in BASELINES if m in METHODS]
 
@@ -65,7 +65,7 @@ def leak_masks(scene, view, width: int, height: int, *, tracer=None) -> dict[str
         rug whose (x, z) lies inside the table object's footprint and below its top;
         ``"leak"``: their union. All False for scenes without such objects.
     """
-    from prtbench.raytrace import Tracer
+    from prtbench.transport.raytrace import Tracer
 
     tracer = tracer or Tracer.from_scene(scene)
     origins, dirs = view.primary_rays(width, height)
@@ -96,15 +96,16 @@ def leak_mae(rows) -> float:
     ----------
     rows : pandas.DataFrame
         Result rows of one run (one method, config, scene, light), one per view, as loaded by
-        :func:`prtbench.results.load`. Rows against a ``method:`` reference give NaN.
+        :func:`prtbench.store.results.load`. Rows against a ``method:`` reference give NaN.
     """
-    from prtbench import config as config_mod
-    from prtbench import imageio, metrics
-    from prtbench.lights import get_light
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.raytrace import Tracer
-    from prtbench.reference import render_reference
-    from prtbench.scene import View, get_scene
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.bench import metrics
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
+    from prtbench.scene.model import View, get_scene
+    from prtbench.transport.lights import get_light
+    from prtbench.transport.raytrace import Tracer
 
     first = rows.iloc[0]
     if first["reference_kind"] != "path":

@@ -17,12 +17,11 @@ fraction 0.24993 against (r/h)² = 0.25, a relative bias of −0.03 % (the inscr
 
 from __future__ import annotations
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, register_scene
-
-from .primitives import uv_sphere
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, register_scene
+from scenes.primitives import uv_sphere
 
 GROUND = {
     "diffuse": Material(kd=(0.5, 0.5, 0.5), name="ground"),

@@ -7,12 +7,11 @@ and face: ``lo.js`` has 38k triangles, ``hi.js`` 109k.
 
 from __future__ import annotations
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import asset_mesh, assemble, check_variant, material
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, asset_mesh, check_variant, material
 
 SUBSTITUTION = "snowden scan (npm snowden@1.0.1) stands in for the thesis's Roza"
 #: The package's build script already turned the scan y-up; its face looks towards (−x, +z),

@@ -7,14 +7,24 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.cache import cached_arrays, content_key
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import degenerate_faces, fill_holes, remove_duplicate_faces, \
-    weld_vertices
-from prtbench.scene import VARIANTS, Material, Scene, SceneObject, Trajectory, TriangleMesh, \
-    vertex_normals
-
-from .primitives import outward, rotate_y, transformed, translate
+from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.geometry import (
+    degenerate_faces,
+    fill_holes,
+    remove_duplicate_faces,
+    weld_vertices,
+)
+from prtbench.scene.model import (
+    VARIANTS,
+    Material,
+    Scene,
+    SceneObject,
+    Trajectory,
+    TriangleMesh,
+    vertex_normals,
+)
+from scenes.primitives import outward, rotate_y, transformed, translate
 
 #: Bump when asset-mesh reading or normalisation changes (invalidates cached normalised meshes).
 #: 4: PLY/OFF read by trimesh, which keeps a PLY ``float`` property float32 (the old reader
@@ -58,7 +68,7 @@ def asset_mesh(asset: str, member: str, *, height: float,
     area-weighted vertex normals. The result is cached by the asset's pinned hash and these
     parameters.
     """
-    from prtbench.assets import ASSETS, asset_path
+    from prtbench.io.assets import ASSETS, asset_path
 
     path = asset_path(asset, member)
     basis = np.eye(3) if object_from_file is None else np.asarray(object_from_file, float)
@@ -66,7 +76,7 @@ def asset_mesh(asset: str, member: str, *, height: float,
                       height, basis, rotate_y_degrees, list(position), close_holes)
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.meshio import read_mesh
+        from prtbench.io.meshio import read_mesh
 
         positions, faces = read_mesh(path)
         positions, faces = weld_vertices(positions @ basis.T, faces)

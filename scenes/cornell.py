@@ -8,17 +8,14 @@ closed slab (surfaces are one-sided) and its own object.
 
 from __future__ import annotations
 
-from prtbench import scene_params as P
-from prtbench.scene import Scene, SceneObject, register_scene
-
 import math
 
 import numpy as np
 
-from prtbench.scene import TriangleMesh
-
-from .common import assemble, check_variant, material
-from .primitives import box, merge, rotate_y, transformed, translate
+from prtbench.scene import params as P
+from prtbench.scene.model import Scene, SceneObject, TriangleMesh, register_scene
+from scenes.common import assemble, check_variant, material
+from scenes.primitives import box, merge, rotate_y, transformed, translate
 
 SIZE = 1.0     # inner edge length
 WALL = 0.04    # slab thickness

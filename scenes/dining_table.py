@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench import scene_params as P
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import assemble, check_variant, material
-from .primitives import box, lathe, merge, rotate_y, transformed, translate, tube
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, check_variant, material
+from scenes.primitives import box, lathe, merge, rotate_y, transformed, translate, tube
 
 TABLE_HEIGHT = 0.76
 TOP = (1.8, 1.0)

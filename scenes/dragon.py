@@ -8,12 +8,11 @@ dropping its duplicate/fin faces and closing the holes that leaves) for quick ru
 
 from __future__ import annotations
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import asset_mesh, assemble, check_variant, material
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, asset_mesh, check_variant, material
 
 FILES = {"full": "dragon_vrip.ply.gz", "res2": "dragon_vrip_res2.ply.gz",
          "res3": "dragon_vrip_res3.ply.gz", "res4": "dragon_vrip_res4.ply.gz"}

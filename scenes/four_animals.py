@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import math
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, register_scene
-
-from .common import asset_mesh, check_variant, material
-from .lion import lion_mesh
-from .primitives import rotate_y, torus, transformed, translate
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, register_scene
+from scenes.common import asset_mesh, check_variant, material
+from scenes.lion import lion_mesh
+from scenes.primitives import rotate_y, torus, transformed, translate
 
 SUBSTITUTION = ("CGAL armadillo, bunny00, lion-head and ChineseDragon statue (libcgal-demo) "
                 "stand in for the paper's Four Animals; our ring is a gold Phong torus")

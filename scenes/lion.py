@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench import scene_params as P
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import asset_mesh, assemble, check_variant, material
-from .primitives import box
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, asset_mesh, check_variant, material
+from scenes.primitives import box
 
 #: Outward normal of the flat cut at the back of the head, in file coordinates (measured by a
 #: plane fit to the file's one boundary loop).

@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench import scene_params as P
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import assemble, check_variant, material
-from .primitives import box, lathe, merge, rotate_y, transformed, translate
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, check_variant, material
+from scenes.primitives import box, lathe, merge, rotate_y, transformed, translate
 
 FLOOR = (7.0, 5.0)
 WALL_Z = -2.5

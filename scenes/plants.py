@@ -13,14 +13,23 @@ import math
 
 import numpy as np
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, TriangleMesh, register_scene
-
-from .common import assemble, check_variant, material
-from .primitives import (leaf, lathe, merge, rotate_x, rotate_y, rotate_z, scale, transformed,
-                         translate, tube)
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, TriangleMesh, register_scene
+from scenes.common import assemble, check_variant, material
+from scenes.primitives import (
+    lathe,
+    leaf,
+    merge,
+    rotate_x,
+    rotate_y,
+    rotate_z,
+    scale,
+    transformed,
+    translate,
+    tube,
+)
 
 LEAF_GREENS = [(0.16, 0.42, 0.10), (0.22, 0.50, 0.14), (0.12, 0.34, 0.12)]
 

@@ -1,6 +1,6 @@
 """Mesh primitives shared by the scene builders.
 
-Every primitive returns a :class:`~prtbench.scene.TriangleMesh` with outward, unit shading
+Every primitive returns a :class:`~prtbench.scene.model.TriangleMesh` with outward, unit shading
 normals and counter-clockwise faces seen from outside, because surfaces are one-sided
 (DESIGN.md §3): a thin thing (leaf, rug, cup wall) must be a closed solid, never a single sheet.
 Builders place primitives with 4×4 ``world_from_object`` matrices (:func:`translate`,
@@ -15,8 +15,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.geometry import degenerate_faces, grid_plane
-from prtbench.scene import TriangleMesh, vertex_normals
+from prtbench.scene.geometry import degenerate_faces, grid_plane
+from prtbench.scene.model import TriangleMesh, vertex_normals
 
 __all__ = [
     "box", "uv_sphere", "lathe", "cylinder", "tube", "torus", "leaf", "outward", "grid_plane",

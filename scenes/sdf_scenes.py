@@ -6,7 +6,7 @@ the neural SDF of the Stanford bunny from Davies et al. 2021 (tables 4.2, 4.3, f
 4.10). Those shader sources are not redistributable assets here, so each scene is modelled
 anew from primitives and smooth Booleans in the same spirit (``sdf-car``, ``sdf-monster``,
 ``sdf-fish``, ``sdf-rabbit``), and the neural bunny is our own small MLP fitted to the CGAL
-bunny (``sdf-bunny-neural``, :mod:`prtbench.neural_sdf`) in the two sizes of table 4.3.
+bunny (``sdf-bunny-neural``, :mod:`prtbench.transport.neural_sdf`) in the two sizes of table 4.3.
 
 Every scene stands on a ground plane that is part of its SDF (the half space y ≤ 0, bounded by
 the scene's tracing box, which makes it a 4 × 4 square like the mesh scenes' grounds). The
@@ -20,14 +20,28 @@ from __future__ import annotations
 
 from typing import Any
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.scene import Material, Scene, register_scene
-from prtbench.sdf import (Box, Capsule, Cone, Cylinder, Ellipsoid, Mirror, Plane, RoundedBox,
-                          SdfNode, SdfSurface, Sphere, Torus, intersection, sdf_scene_objects,
-                          subtract, union)
-
-from .common import assemble, check_variant, material
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.model import Material, Scene, register_scene
+from prtbench.transport.sdf import (
+    Box,
+    Capsule,
+    Cone,
+    Cylinder,
+    Ellipsoid,
+    Mirror,
+    Plane,
+    RoundedBox,
+    SdfNode,
+    SdfSurface,
+    Sphere,
+    Torus,
+    intersection,
+    sdf_scene_objects,
+    subtract,
+    union,
+)
+from scenes.common import assemble, check_variant, material
 
 #: Default marching-cubes resolution (cells along the 4-unit side of the box: 1.6 cm cells).
 MC_RESOLUTION = 256
@@ -339,7 +353,7 @@ def build_bunny_neural(*, variant: str = "diffuse", size: str = "small",
     """The Stanford bunny as a neural SDF on the ground (thesis STANFORD-BUNNY, table 4.3).
 
     The CGAL bunny (Debian ``libcgal-demo``, needs ``prtbench assets fetch cgal-meshes``) is
-    fitted by a small sine MLP (:func:`prtbench.neural_sdf.fit_neural_sdf`: ~0.5–1 min on two
+    fitted by a small sine MLP (:func:`prtbench.transport.neural_sdf.fit_neural_sdf`: ~0.5–1 min on two
     CPU cores the first time, then cached); the scene's SDF is that network united with the
     ground plane, and its objects the marching-cubes mesh of the network.
 
@@ -353,9 +367,8 @@ def build_bunny_neural(*, variant: str = "diffuse", size: str = "small",
     seed : int
         Seed of the network's initialisation and training batches.
     """
-    from prtbench.neural_sdf import SIZES, fit_neural_sdf
-
-    from .common import asset_mesh
+    from prtbench.transport.neural_sdf import SIZES, fit_neural_sdf
+    from scenes.common import asset_mesh
 
     check_variant(variant)
     if size not in SIZES:

@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import math
 
-from prtbench import scene_params as P
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .common import asset_mesh, assemble, check_variant, material
-from .primitives import box, lathe, merge, rotate_y, rotate_z, torus, transformed, translate
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.common import assemble, asset_mesh, check_variant, material
+from scenes.primitives import box, lathe, merge, rotate_y, rotate_z, torus, transformed, translate
 
 TABLE_HEIGHT = 0.75
 

@@ -7,12 +7,11 @@ busts, armadillo) make the scene's four texture-set pieces (PRTT Fig. 3).
 
 from __future__ import annotations
 
-from prtbench import scene_params as P
-from prtbench.geometry import grid_plane
-from prtbench.scene import Scene, SceneObject, register_scene
-
-from .bust import RESOLUTIONS, bust_mesh
-from .common import asset_mesh, assemble, check_variant, material
+from prtbench.scene import params as P
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Scene, SceneObject, register_scene
+from scenes.bust import RESOLUTIONS, bust_mesh
+from scenes.common import assemble, asset_mesh, check_variant, material
 
 
 @register_scene("trm", params={"resolution": P.choice(*RESOLUTIONS),

@@ -52,16 +52,21 @@ import numpy as np
 
 sys.path.insert(0, "tests/methods")
 
-import methods.neural_wavelet  # noqa: E402,F401
-import prtbench  # noqa: E402
-from prtbench.lights import get_light  # noqa: E402
-from prtbench.method import METHODS, load_or_precompute  # noqa: E402
-from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline  # noqa: E402
-from prtbench.scene import get_scene  # noqa: E402
-from test_neural_wavelet import (COMPARISON, HOLDOUT_REFERENCE_SPP,  # noqa: E402
-                                 MUST_HOLD_SH_BANDS, must_hold_scene)
-
 import os  # noqa: E402
+
+from test_neural_wavelet import (  # noqa: E402
+    COMPARISON,
+    HOLDOUT_REFERENCE_SPP,
+    MUST_HOLD_SH_BANDS,
+    must_hold_scene,
+)
+
+import methods.neural_wavelet.method  # noqa: E402,F401
+import prtbench  # noqa: E402
+from prtbench.api.method import METHODS, load_or_precompute  # noqa: E402
+from prtbench.scene.model import get_scene  # noqa: E402
+from prtbench.transport.lights import get_light  # noqa: E402
+from reproductions.nw_evaluate import indirect_metrics, sh_baseline  # noqa: E402
 
 #: The test's evaluation size and reference samples (NW_EVAL_SPP overrides the latter).
 W, H, SPP = 64, 48, int(os.environ.get("NW_EVAL_SPP", HOLDOUT_REFERENCE_SPP))
@@ -78,16 +83,16 @@ def train_fit(artifact, config) -> float:
     """PSNR (peak = max target) of the trained model on its training rows, render-time k."""
     import torch
 
-    from prtbench.neural_wavelet.data import build_dataset
-    from prtbench.neural_wavelet.model import NeuralWaveletModel
-    from prtbench.neural_wavelet.train import _tensors
-    from prtbench.wavelet.selection import select_terms
+    from methods.neural_wavelet.data import build_dataset
+    from methods.neural_wavelet.model import NeuralWaveletModel
+    from methods.neural_wavelet.train import _tensors
+    from prtbench.transport.wavelet.selection import select_terms
 
     scene = _scene()
     data = build_dataset(scene, config, progress=False)
     model = NeuralWaveletModel.from_arrays(artifact.arrays)
     inputs = _tensors(data, "cpu")
-    from prtbench import imageio
+    from prtbench.io import imageio
 
     err, peak, count = 0.0, float(np.max(data["target"])), 0
     derr, dzero = 0.0, 0.0
@@ -144,7 +149,7 @@ def main() -> None:
     scene = _scene()
     t0 = time.time()
     if "--data-only" in sys.argv:
-        from prtbench.neural_wavelet.data import build_dataset
+        from methods.neural_wavelet.data import build_dataset
 
         config = _config(cls, extra, variants[0])
         data = build_dataset(scene, config, progress=True)

@@ -2,7 +2,7 @@
 
 Under pytest-xdist (``make test`` runs ``pytest -n 2``) the workers of one run share one
 artifact cache, so a transfer or reference one worker computed is a hit for the other; the
-cache's per-entry locks (:func:`prtbench.cache.entry_lock`) make concurrent workers compute an
+cache's per-entry locks (:func:`prtbench.api.cache.entry_lock`) make concurrent workers compute an
 entry once and never read it half-written. Each worker keeps its own results store.
 """
 

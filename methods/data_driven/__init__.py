@@ -9,6 +9,6 @@ transfer matrix), :mod:`.shadows` (shadow-map atlas), :mod:`.runtime` (GL passes
 reproductions; their figures are drawn in ``reproductions/``).
 """
 
-from .method import DataDrivenConfig, DataDrivenPRT
+from pathlib import Path
 
-__all__ = ["DataDrivenConfig", "DataDrivenPRT"]
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
 
 LAYOUTS = ("mono", "interleaved")
 

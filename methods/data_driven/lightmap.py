@@ -1,7 +1,7 @@
 """Lightmaps on the scene's UV atlas: which texels are on the surface, and where.
 
 Indirect light is baked in texture space (paper §4.1: "each row of I is a lightmap"). The atlas
-comes from :func:`prtbench.geometry.scene_atlas` (all objects packed in one texture). A texel
+comes from :func:`prtbench.scene.geometry.scene_atlas` (all objects packed in one texture). A texel
 is *covered* when its centre lies inside an atlas triangle; its surface point, interpolated
 shading normal and albedo are what the bake shades. Texels around charts are then filled by
 :func:`dilate` so that bilinear lookups near chart borders never read empty texels.
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.errors import InvalidInputError
-from prtbench.scene import Scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import Scene
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,7 +120,7 @@ def build_lightmap(scene: Scene, *, resolution: int, padding: int = 2) -> Lightm
     InvalidInputError
         If a material is textured (albedo per object only) or the atlas does not pack.
     """
-    from prtbench.geometry import scene_atlas
+    from prtbench.scene.geometry import scene_atlas
 
     try:
         atlases = scene_atlas(scene, resolution=resolution, padding=padding)

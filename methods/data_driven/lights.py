@@ -9,7 +9,7 @@ environment maps, so the delta lights live here:
   ``beam_width``, a linear ramp in angle down to 0 at ``cutoff_angle``, black outside.
 * :class:`DirectionalLight`: irradiance E (RGB) on a surface facing ``to_light``.
 
-An :class:`~prtbench.lights.EnvironmentLight` is drawn at run time as ``k`` directional lights
+An :class:`~prtbench.transport.lights.EnvironmentLight` is drawn at run time as ``k`` directional lights
 from Debevec's median-cut sampling of the map (each region's power at its energy centroid), the
 usual way a rasteriser shadows an environment; the bake and the reference see the map itself.
 
@@ -25,8 +25,7 @@ from typing import Any, Union
 
 import numpy as np
 
-from prtbench.errors import InvalidInputError
-
+from prtbench.api.errors import InvalidInputError
 
 Rgb = tuple[float, float, float]
 
@@ -184,7 +183,7 @@ def is_environment(light: Any) -> bool:
 
 def rotate_environment(light: Any, columns: int, *, name: str | None = None):
     """``light`` turned about +Y by ``columns`` lat-long columns (exact: a roll of the image)."""
-    from prtbench.lights import EnvironmentLight
+    from prtbench.transport.lights import EnvironmentLight
 
     k = int(columns) % light.width
     return EnvironmentLight(name or f"{light.name}@{k}", np.roll(light.image, k, axis=1),

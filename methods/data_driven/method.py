@@ -24,13 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.config import check_memory, knob, seed_knob
-from prtbench.method import Artifact, Method, register_method
-
-from .._materials import check_diffuse_constant_kd
-from .basis import LAYOUTS, Basis, encode, fit, to_examples
-from .families import FAMILIES, REGIONS
-from .measurement import PLACEMENTS
+from methods.common.materials import check_diffuse_constant_kd
+from methods.data_driven.basis import LAYOUTS, Basis, encode, fit, to_examples
+from methods.data_driven.families import FAMILIES, REGIONS
+from methods.data_driven.measurement import PLACEMENTS
+from prtbench.api.config import check_memory, knob, seed_knob
+from prtbench.api.method import Artifact, Method, register_method
 
 
 @dataclass(frozen=True)
@@ -122,8 +121,6 @@ class DataDrivenPRT(Method):
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
     main_knobs = ("basis",)
-    summary = ("Belcour 2022 data-driven PRT: shadow-mapped direct + indirect from an SVD "
-               "lightmap basis driven by a fake G-buffer")
     paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"
     light_dependence = "family"
     light_dependence_why = ("indirect light comes from a basis learnt from one family of lights "
@@ -141,7 +138,7 @@ class DataDrivenPRT(Method):
     #: (16.5 dB); with 64 it scores ~18.8 dB (the regression gate, issue #12).
     regression_case = {"scene": "cornell", "variant": "diffuse", "light": "sky",
                        "overrides": {"env_lights": 64}}
-    #: Why the regression gate has no "unshadowed render" of this method (prtbench.trivial).
+    #: Why the regression gate has no "unshadowed render" of this method (prtbench.bench.trivial).
     no_visibility_reason = (
         "data-driven has no visibility knob: direct light is shadow-mapped in its shaders at "
         "render time, and its indirect light is made of the rays that hit geometry (no "
@@ -158,13 +155,13 @@ class DataDrivenPRT(Method):
                      36 * config.configurations * texels + 12 * config.basis * texels,
                      accepted="fewer configurations or a smaller lightmap_resolution")
         if config.light_family == "env-rotations":
-            from prtbench.lights import get_light
+            from prtbench.transport.lights import get_light
 
             get_light(config.environment or scene.default_light)  # names the bad light
 
     @classmethod
     def precompute(cls, scene, config: DataDrivenConfig, *, progress: bool = True) -> Artifact:
-        from .dataset import build_dataset
+        from methods.data_driven.dataset import build_dataset
 
         dataset = build_dataset(scene, config, progress=progress)
         basis = fit_basis(dataset, config)
@@ -190,7 +187,7 @@ class DataDrivenPRT(Method):
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: DataDrivenConfig, *, width: int,
                  height: int):
-        from .runtime import DataDrivenRenderer
+        from methods.data_driven.runtime import DataDrivenRenderer
 
         return DataDrivenRenderer(scene, artifact.arrays, width=width, height=height,
                                   basis_count=config.basis,

@@ -1,7 +1,7 @@
 """Mitsuba path references under the data-driven method's lights (total, direct or indirect).
 
-:func:`prtbench.reference.render_reference` renders environment maps only. This module builds
-the same Mitsuba scene with :func:`prtbench.reference.mitsuba_scene_dict` and swaps the emitter
+:func:`prtbench.render.reference.render_reference` renders environment maps only. This module builds
+the same Mitsuba scene with :func:`prtbench.render.reference.mitsuba_scene_dict` and swaps the emitter
 for Mitsuba's ``point``, ``spot`` or ``directional`` (or keeps the ``envmap``), so the method and
 the reference see identical geometry, materials and cameras.
 
@@ -24,10 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.cache import cache_root, content_key
-from prtbench.errors import InvalidInputError
-
-from .lights import analytic_lights, is_environment, light_spec
+from methods.data_driven.lights import analytic_lights, is_environment, light_spec
+from prtbench.api.cache import cache_root, content_key
+from prtbench.api.errors import InvalidInputError
 
 #: Bump when a change here changes pixels.
 VERSION = 1
@@ -59,7 +58,7 @@ class _Black:
 def scene_dict(scene: Any, light: Any, view: Any, *, width: int, height: int,
                max_depth: int) -> dict[str, Any]:
     """``mi.load_dict`` description of ``scene`` under ``light`` (variant must be set)."""
-    from prtbench.reference import mitsuba_scene_dict
+    from prtbench.render.reference import mitsuba_scene_dict
 
     env = light if is_environment(light) else _Black()
     out = mitsuba_scene_dict(scene, env, view, width=width, height=height, bounces=0)
@@ -111,8 +110,8 @@ def render_light_reference(scene: Any, light: Any, view: Any, *, width: int, hei
     component : {"total", "direct", "indirect"}
     seed : int
     """
-    from prtbench.imageio import read_exr, read_exr_metadata, write_exr
-    from prtbench.reference import select_variant
+    from prtbench.io.imageio import read_exr, read_exr_metadata, write_exr
+    from prtbench.render.reference import select_variant
 
     if component not in COMPONENTS:
         raise InvalidInputError(f"reference component '{component}'; accepted: {', '.join(COMPONENTS)}")

@@ -21,12 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from prtbench import gl
-from prtbench.method import FrameTimes, Renderer
-from prtbench.scene import View
+from methods.data_driven import SHADER_DIR
+from methods.data_driven.shadows import LIGHT_DEFINES, DirectLighting
+from prtbench.api.method import FrameTimes, Renderer
+from prtbench.render import gl
+from prtbench.scene.model import View
 
-from .. import SHADER_DIR
-from .shadows import LIGHT_DEFINES, DirectLighting
 
 def _clip_planes(scene_lo: np.ndarray, scene_hi: np.ndarray, view: View) -> tuple[float, float]:
     centre, radius = (scene_lo + scene_hi) / 2, float(np.linalg.norm(scene_hi - scene_lo)) / 2

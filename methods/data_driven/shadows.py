@@ -14,11 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from prtbench import gl
-from prtbench.scene import View
-
-from .. import SHADER_DIR
-from .lights import DirectionalLight, PointLight, SpotLight, analytic_lights, is_environment
+from methods.data_driven import SHADER_DIR
+from methods.data_driven.lights import (
+    DirectionalLight,
+    PointLight,
+    SpotLight,
+    analytic_lights,
+    is_environment,
+)
+from prtbench.render import gl
+from prtbench.scene.model import View
 
 MAX_LIGHTS = 64
 MAX_TILES = 96
@@ -55,7 +60,7 @@ class ShadowTiles:
     CUBE = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
     def __init__(self, lights: list, lo: np.ndarray, hi: np.ndarray, *, resolution: int):
-        from prtbench.errors import InvalidInputError
+        from prtbench.api.errors import InvalidInputError
 
         if len(lights) > MAX_LIGHTS:
             raise InvalidInputError(f"{len(lights)} lights; accepted: at most {MAX_LIGHTS}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prtbench.config import check_memory, knob, seed_knob
+from prtbench.api.config import check_memory, knob, seed_knob
 
 #: What changes the trained network. Everything else (renderer, product, GLSL limit) only
 #: changes how the same weights are evaluated, so it is left out of the training cache key.

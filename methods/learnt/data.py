@@ -1,9 +1,9 @@
 """Training and held-out data of the learnt transfer (thesis §4.1.2–4.1.3).
 
 Training points are drawn area-uniformly with Turk's square-root method and kept off vertices
-and edges (``prtbench.geometry.sample_surface`` with a minimum barycentric coordinate); their
+and edges (``prtbench.scene.geometry.sample_surface`` with a minimum barycentric coordinate); their
 transfer T_i(p) = ∫ Y_i V max(n·ω, 0) dω comes from the core precompute
-(``prtbench.transfer.compute_transfer``), tracing against the whole scene. The held-out set is
+(``prtbench.transport.transfer.compute_transfer``), tracing against the whole scene. The held-out set is
 the mesh vertices, which the margin keeps out of the training set (the thesis's test set).
 
 Transfer depends on geometry only, so both sets are cached by a hash of positions, faces and
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.cache import cached_arrays, content_key
-from prtbench.errors import InvalidInputError
+from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.errors import InvalidInputError
 
 #: Bump when the sampling or the held-out selection changes.
 DATA_VERSION = 1
@@ -53,7 +53,7 @@ class TransferSamples:
 def geometry_key(scene) -> str:
     """Hash of what transfer depends on: object names, positions, faces, normals (no materials)
     and the version of the core transfer code, so a fix there retires cached training data."""
-    from prtbench.transfer import TRANSFER_VERSION
+    from prtbench.transport.transfer import TRANSFER_VERSION
 
     return content_key("learnt-geometry", TRANSFER_VERSION,
                        [[o.name, o.mesh.positions, o.mesh.faces, o.mesh.normals]
@@ -89,7 +89,7 @@ def object_counts(scene, samples: int, balance: float) -> np.ndarray:
 
 def _draw(scene, samples: int, *, seed: int, vertex_margin: float, balance: float):
     """Turk samples: whole-scene area-uniform (balance 0) or per-object counts."""
-    from prtbench.geometry import sample_surface
+    from prtbench.scene.geometry import sample_surface
 
     if balance == 0:
         drawn = sample_surface(scene, samples, seed=seed, min_barycentric=vertex_margin)
@@ -142,7 +142,7 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
     key = content_key("learnt-train", *parts)
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.transfer import compute_transfer
+        from prtbench.transport.transfer import compute_transfer
 
         points, normals, ids = _draw(scene, samples, seed=seed, vertex_margin=vertex_margin,
                                      balance=object_balance)
@@ -169,7 +169,7 @@ def heldout_samples(scene, *, max_vertices: int, rays_per_point: int, bands: int
                       rays_per_point, bands, seed, *(() if visibility else ("unshadowed",)))
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.transfer import compute_transfer
+        from prtbench.transport.transfer import compute_transfer
 
         positions, normals, _, _ = scene.merged()
         object_ids = np.concatenate([np.full(o.mesh.n_vertices, i, np.int32)

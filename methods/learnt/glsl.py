@@ -4,7 +4,7 @@ The thesis (§4.1.4.1) splits each layer's weight matrix into 4×4 blocks, write
 fragment shader as ``mat4`` constants and evaluates the network with mat4·vec4 products. This
 module emits only *data*: ``const mat4`` / ``const vec4`` arrays and ``#define``\\ s, written to
 an include file ``learnt_weights.glsl`` in a cache directory keyed by the weights' hash. The
-forward pass that reads them is ``methods/shaders/learnt_mlp.glsl``; the sub-scene selection
+forward pass that reads them is ``methods/learnt/shaders/learnt_mlp.glsl``; the sub-scene selection
 reads the partition tables of ``learnt_partition.glsl`` (also emitted here).
 
 Block layout. Layer j maps in → out (both padded to multiples of 4). Block (r, c) is
@@ -30,11 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.cache import atomic_path, cache_root, content_key
-from prtbench.errors import InvalidInputError
-
-from .network import Network, NetworkSpec
-from .subdivide import KINDS, Partition
+from methods.learnt.network import Network, NetworkSpec
+from methods.learnt.subdivide import KINDS, Partition
+from prtbench.api.cache import atomic_path, cache_root, content_key
+from prtbench.api.errors import InvalidInputError
 
 #: Most hard-coded weights/biases accepted in one fragment shader (see the module docstring).
 DEFAULT_WEIGHT_LIMIT = 65_536

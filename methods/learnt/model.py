@@ -14,13 +14,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.cache import cached_arrays, content_key
-
-from .config import TRAINING_KNOBS, LearntConfig
-from .data import geometry_key, heldout_samples, training_samples
-from .network import (Network, NetworkSpec, box_normalisation, heldout_error, predict,
-                      resolve_device, train_network)
-from .subdivide import Partition, build_partition, training_rows
+from methods.learnt.config import TRAINING_KNOBS, LearntConfig
+from methods.learnt.data import geometry_key, heldout_samples, training_samples
+from methods.learnt.network import (
+    Network,
+    NetworkSpec,
+    box_normalisation,
+    heldout_error,
+    predict,
+    resolve_device,
+    train_network,
+)
+from methods.learnt.subdivide import Partition, build_partition, training_rows
+from prtbench.api.cache import cached_arrays, content_key
 
 #: Bump when training or evaluation changes for the same knobs (invalidates cached models).
 MODEL_VERSION = 2  # 2: trained under MKL strict reproducibility (prtbench/__init__.py)
@@ -89,7 +95,7 @@ def _range_check(model: LearntModel, points, normals, object_ids, truth) -> dict
     """How close tanh comes to saturating on held-out points, and targets it cannot reach."""
     import torch
 
-    from .network import TorchNetwork
+    from methods.learnt.network import TorchNetwork
 
     group = model.partition.group_of_points(points, object_ids)
     max_raw, unreachable = 0.0, 0

@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prtbench.errors import InvalidInputError
-
-from .data import check_finite
+from methods.learnt.data import check_finite
+from prtbench.api.errors import InvalidInputError
 
 
 @dataclass(frozen=True)
@@ -182,7 +181,7 @@ def predict(network: Network, spec: NetworkSpec, points: np.ndarray, normals: np
 def projection_canvas(rows: int, bands: int) -> np.ndarray:
     """(rows·2rows, n²) SH values at the cell centres of a lat-long canvas (unweighted, as a
     naive canvas projection is: the loss of thesis §4.3.2)."""
-    from prtbench.sh import eval_sh
+    from prtbench.transport.sh import eval_sh
 
     theta = (np.arange(rows) + 0.5) / rows * np.pi
     phi = (np.arange(2 * rows) + 0.5) / (2 * rows) * 2 * np.pi

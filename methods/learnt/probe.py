@@ -24,15 +24,14 @@ import time
 def _child(hidden: int, layers: int, frequencies: int) -> dict:
     import numpy as np
 
-    from prtbench.lights import get_light
-    from prtbench.scene import get_scene
-
-    from .config import LearntConfig
-    from .glsl import hardcoded_floats
-    from .model import LearntModel
-    from .network import Network, NetworkSpec
-    from .renderer import GLSLRenderer
-    from .subdivide import build_partition
+    from methods.learnt.config import LearntConfig
+    from methods.learnt.glsl import hardcoded_floats
+    from methods.learnt.model import LearntModel
+    from methods.learnt.network import Network, NetworkSpec
+    from methods.learnt.renderer import GLSLRenderer
+    from methods.learnt.subdivide import build_partition
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import get_light
 
     spec = NetworkSpec(4, hidden, layers, frequencies, 0.01)
     rng = np.random.default_rng(0)

@@ -9,17 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench import gl
-from prtbench.method import FrameTimes, Renderer
-
-from .. import SHADER_DIR
-from . import glsl
-from .model import LearntModel
+from methods.learnt import SHADER_DIR, glsl
+from methods.learnt.model import LearntModel
+from prtbench.api.method import FrameTimes, Renderer
+from prtbench.render import gl
 
 
 def vertex_attributes(scene) -> dict[str, np.ndarray]:
     """Per-vertex inputs of ``learnt.vert`` in merged order: normal, kd, ks, shininess, object."""
-    from methods._raster import kd_per_vertex
+    from prtbench.render.raster import kd_per_vertex
 
     _, normals, _, _ = scene.merged()
     ks = np.concatenate([np.broadcast_to(np.asarray(o.material.ks, np.float32),
@@ -76,7 +74,7 @@ class LearntGLBase(Renderer):
 
     def _draw_geometry(self, view, light) -> None:
         """Depth pre-pass (optional) and the main pass into ``self.target``."""
-        from methods._raster import clip_planes
+        from prtbench.render.raster import clip_planes
 
         near, far = clip_planes(self.scene, view)
         clip_from_world = (view.clip_from_camera(self.width / self.height, near, far)
@@ -129,7 +127,7 @@ class GLSLRenderer(LearntGLBase):
     """The MLP in the fragment shader with hard-coded mat4 weights (thesis §4.1.4.1)."""
 
     def __init__(self, scene, model: LearntModel, config, *, width: int, height: int):
-        from methods import _triple
+        from prtbench.render import prt_shading as _triple
 
         glsl.check_glsl_limit(model.spec, len(model.networks), config.glsl_weight_limit)
         self.product = config.product

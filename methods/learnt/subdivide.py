@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
 
 #: Partition kinds as the shaders number them (LEARNT_PARTITION).
 KINDS = {"none": 0, "grid": 1, "objects": 2}

@@ -16,18 +16,17 @@ import math
 
 import numpy as np
 
-from prtbench.method import FrameTimes, wall_frame_times
-
-from . import glsl
-from .model import LearntModel
-from .network import TorchNetwork, resolve_device
-from .renderer import LearntGLBase
+from methods.learnt import glsl
+from methods.learnt.model import LearntModel
+from methods.learnt.network import TorchNetwork, resolve_device
+from methods.learnt.renderer import LearntGLBase
+from prtbench.api.method import FrameTimes, wall_frame_times
 
 
 def sh_eval_torch(torch, dirs, bands: int):
-    """Real SH (prtbench.sh convention) of ``bands`` bands at unit ``dirs`` (P, 3): (P, n²).
+    """Real SH (prtbench.transport.sh convention) of ``bands`` bands at unit ``dirs`` (P, 3): (P, n²).
 
-    The recurrence of ``sh.glsl`` / ``prtbench.sh.eval_sh`` (normalised Legendre functions and
+    The recurrence of ``sh.glsl`` / ``prtbench.transport.sh.eval_sh`` (normalised Legendre functions and
     Re/Im of (x + iy)^m), vectorised over pixels.
     """
     x, y, z = dirs[:, 0], dirs[:, 1], dirs[:, 2]
@@ -127,7 +126,7 @@ class TorchRenderer(LearntGLBase):
         """
         torch, bands = self.torch, self.model.spec.bands
         if self.product == "tp":
-            from prtbench.sh import triple_product_tensor
+            from prtbench.transport.sh import triple_product_tensor
 
             if not hasattr(self, "_gamma"):
                 gamma = np.array(triple_product_tensor(bands), np.float32)  # a writable copy
@@ -136,7 +135,7 @@ class TorchRenderer(LearntGLBase):
             return torch.einsum("ijk,jc->ikc", self._gamma, coeffs)
         key = light.content_hash()
         if key != self._light_key:
-            from methods._triple import tpfl_matrix_rgb
+            from prtbench.render.prt_shading import tpfl_matrix_rgb
 
             self._light_matrix = torch.as_tensor(tpfl_matrix_rgb(light.sh(bands), bands),
                                                  device=self.device)

@@ -13,7 +13,7 @@ with shade(H, …) = kd/π·√(4π)·H_0 + ks·Σ_l √(4π/(2l+1))·g_l(s)·Σ
 A hit's texel is found by interpolating the atlas UVs of the hit face with the hit's
 barycentrics and sampling the (dilated) texture like the renderer does. Rays are cosine
 weighted about p's shading normal, so T_b,i ≈ π/M Σ_j Y_i(ω_j) B(q_j, −ω_j); like
-:func:`prtbench.transfer.compute_transfer` the sum is formed in each point's local frame and
+:func:`prtbench.transport.transfer.compute_transfer` the sum is formed in each point's local frame and
 rotated to the world frame once per point.
 """
 
@@ -24,14 +24,13 @@ import sys
 
 import numpy as np
 
-from prtbench.parallel import map_chunks, parallel_chunks
-from prtbench.raytrace import Tracer, offset_origins
-from prtbench.sh import eval_sh, lm_of, phong_zonal, tpfl_matrix
-from prtbench.transfer import RayPattern, ShRotation
-
-from .atlas import AtlasMesh
-from .shading import ShadingInputs
-from .texels import texel_lookup
+from methods.common.atlas.atlas import AtlasMesh
+from methods.common.atlas.shading import ShadingInputs
+from methods.common.atlas.texels import texel_lookup
+from prtbench.transport.parallel import map_chunks, parallel_chunks
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.sh import eval_sh, lm_of, phong_zonal, tpfl_matrix
+from prtbench.transport.transfer import RayPattern, ShRotation
 
 #: Rays traced and shaded per batch (bounds the (hits, n², 3) float64 scratch to ~40 MB).
 RAYS_PER_BATCH = 1 << 16
@@ -172,7 +171,7 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
                 return out
 
             gathered = np.zeros((len(points), n2, 3))
-            # Chunks on the precompute threads (prtbench.parallel), reduced in chunk order;
+            # Chunks on the precompute threads (prtbench.transport.parallel), reduced in chunk order;
             # their boundaries depend only on the point count, so results on every thread count.
             chunks = parallel_chunks(len(points), step)
             for values, sl in zip(map_chunks(chunk, chunks), chunks):

@@ -1,7 +1,7 @@
 """Compressed transfer textures: PCA / VQ / CPCA of the texels (Sloan 2003, texels as signals).
 
 The filled texels (covered plus dilated) of the transfer textures are the N signals x ∈ R^{n²}
-that :mod:`prtbench.compress` fits; the artifact keeps only the form (``cpca_*`` arrays) and the
+that :mod:`prtbench.transport.compress` fits; the artifact keeps only the form (``cpca_*`` arrays) and the
 ``filled`` mask that says which texel each signal is (C order over (S, R, R)).
 
 Rendering (texture_cpca.glsl): the transfer → H map is linear for a fixed light,
@@ -20,10 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.compress import knobs as compress_knobs
-from prtbench.errors import InvalidInputError
-
-from .texels import layer_count
+from methods.common.atlas.texels import layer_count
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.compress import knobs as compress_knobs
 
 #: Binding of the projection table P (cpca.glsl's CpcaProjected).
 BINDING_PROJECTED = 5
@@ -46,7 +45,7 @@ def check_form(config, *, sets: int, resolution: int) -> None:
     form = compress_knobs.resolve(config)
     if form is None:
         return
-    from prtbench.compress import check_request
+    from prtbench.transport.compress import check_request
 
     if config.bounces > 0:
         raise InvalidInputError(
@@ -119,7 +118,7 @@ class CompressedTexels:
 
     def light_operator(self, light):
         """rows (M, n²) → (M, n²·3): H_k,c = Σ_i T_i M_ik,c with M = tpfl_matrix(L)."""
-        from methods import _triple
+        from prtbench.render import prt_shading as _triple
 
         matrix = _triple.tpfl_matrix_rgb(light.sh(self.sh_bands), self.sh_bands).astype(
             np.float64)  # (n², n², 3)

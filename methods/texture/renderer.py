@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench import gl
-from prtbench.compress import knobs as compress_knobs
-from prtbench.errors import InvalidInputError
-from prtbench.method import Artifact, FrameTimes, Renderer
-
-from .. import SHADER_DIR, _triple
-from .atlas import AtlasMesh
-from .shading import ShadingInputs, normal_map_texture
-from .texels import layer_count, rgba_layers
+from methods.common.atlas import SHADER_DIR as ATLAS_SHADER_DIR
+from methods.common.atlas.atlas import AtlasMesh
+from methods.common.atlas.shading import ShadingInputs, normal_map_texture
+from methods.common.atlas.texels import layer_count, rgba_layers
+from methods.texture import SHADER_DIR
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import Artifact, FrameTimes, Renderer
+from prtbench.render import gl
+from prtbench.render import prt_shading as _triple
+from prtbench.transport.compress import knobs as compress_knobs
 
 
 class TextureRenderer(Renderer):
@@ -48,7 +49,7 @@ class TextureRenderer(Renderer):
         bounce = arrays.get("bounce")
         self.cpca = None
         if compress_knobs.is_compressed(arrays):  # PCA / VQ / CPCA form (.compressed)
-            from .compressed import CompressedTexels
+            from methods.texture.compressed import CompressedTexels
 
             filled = np.asarray(arrays["filled"], bool)
             model = compress_knobs.load_model(arrays, n_signals=int(filled.sum()))
@@ -74,7 +75,7 @@ class TextureRenderer(Renderer):
             defines.update(self.cpca.defines, PRODUCT_TP=False,
                            BILINEAR=config.filtering == "bilinear")
         self.program = gl.load_program(ctx, "texture_prt.vert", "texture_prt.frag", defines=defines,
-                                       search_path=[SHADER_DIR])
+                                       search_path=[SHADER_DIR, ATLAS_SHADER_DIR])
         self.depth_program = gl.load_program(ctx, "texture_depth.vert", "texture_depth.frag",
                                              search_path=[SHADER_DIR])
         self._resident = []
@@ -170,7 +171,7 @@ class TextureRenderer(Renderer):
 
     # -- drawing ----------------------------------------------------------------------------
     def _draw(self, view, light) -> None:
-        from methods._raster import clip_planes
+        from prtbench.render.raster import clip_planes
 
         near, far = clip_planes(self.scene, view)
         clip_from_world = (view.clip_from_camera(self.width / self.height, near, far)

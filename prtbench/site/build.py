@@ -22,11 +22,11 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..errors import InvalidInputError
-from . import data as data_mod
-from . import plot as plot_mod
-from . import stability as stability_mod
-from .images import STOPS, ImageMaker, stop_name
+from prtbench.api.errors import InvalidInputError
+from prtbench.site import data as data_mod
+from prtbench.site import plot as plot_mod
+from prtbench.site import stability as stability_mod
+from prtbench.site.images import STOPS, ImageMaker, stop_name
 
 #: Marks a folder as a site this command wrote (so rebuilding may replace it).
 MARKER = ".prtbench-site"
@@ -89,7 +89,7 @@ def _environment():
 
 def check_out(out: Path) -> None:
     """``out`` may be written: a creatable folder, absent, empty or an earlier site."""
-    from .. import outputs
+    from prtbench.bench import outputs
 
     outputs.check_folder("--out", out)
     foreign = [p for p in out.iterdir() if p.name not in KEPT] if out.is_dir() else []
@@ -200,7 +200,7 @@ def _plotly_js() -> Path:
 
 def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> dict:
     """Make every PNG of a page; returns the comparison viewer's JSON."""
-    from .. import renders
+    from prtbench.render import renders
 
     folder = f"images/{data_mod.slug(page.scene, page.light, page.profile)}"
     configs = []
@@ -266,7 +266,7 @@ def _overview(site: data_mod.SiteData) -> list[dict]:
 def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root: Path, env, *,
                        maker_cache: Path | None) -> str:
     """A table's or figure's page from its newest complete report run (``--from-store``)."""
-    from .. import measurements
+    from prtbench.store import measurements
 
     work = Path(tempfile.mkdtemp(prefix=".reproduction-", dir=root))
     try:
@@ -274,7 +274,7 @@ def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root:
         error = ""
         try:
             if item.kind == "table":
-                from ..reproduction import run_table
+                from prtbench.bench.reproduction import run_table
 
                 md, csv_path = run_table(item.reproduction, profile=item.profile,
                                          results_path=site.results_path, reports_dir=work,

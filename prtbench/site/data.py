@@ -9,7 +9,7 @@ the rows measured with one worker), so the site agrees with ``prtbench pareto`` 
 Rows of other statuses (degenerate, failed) and rows compared with a method reference are
 listed with their reason, never plotted.
 
-Images come from the cache (:mod:`prtbench.renders` for each view's render and the path
+Images come from the cache (:mod:`prtbench.render.renders` for each view's render and the path
 reference it was compared with); a row whose images are gone is shown without them.
 """
 
@@ -21,7 +21,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import PrtbenchError
+from prtbench.api.errors import PrtbenchError
 
 #: Metrics a configuration's view table prints, in order.
 VIEW_METRICS = ("psnr_masked", "ssim_masked", "flip_masked", "psnr")
@@ -41,7 +41,7 @@ class ViewEntry:
 
     Attributes
     ----------
-    row : prtbench.results.ResultRow
+    row : prtbench.store.results.ResultRow
         The newest row of this view (a re-timed cell has several; their metrics agree).
     render, reference : Path or None
         The cached linear render and the reference EXR it was compared with.
@@ -147,8 +147,8 @@ class SiteData:
 def _knobs(method: str, config: dict, profile: str) -> str:
     """The knobs that differ from the method's config in ``profile``, ``k=v`` (the whole
     config if the method is no longer registered), as the Pareto reports print them."""
-    from .. import config as config_mod
-    from ..method import METHODS
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS
 
     try:
         defaults = config_mod.to_dict(METHODS.get(method).make_config({}, profile=profile))
@@ -165,7 +165,7 @@ def _config_key(row) -> tuple:
 
 
 def _views(rows: list, cache: Path | None) -> list[ViewEntry]:
-    from .. import renders
+    from prtbench.render import renders
 
     newest: dict[int, object] = {}
     for row in rows:  # insertion order: the last row of a view wins, if its images exist
@@ -183,7 +183,7 @@ def _views(rows: list, cache: Path | None) -> list[ViewEntry]:
 
 
 def _page(scene: str, light: str, profile: str, rows: list, cache: Path | None) -> ScenePage:
-    from ..tradeoff.pareto import collect_points, mark_fronts
+    from prtbench.tradeoff.pareto import collect_points, mark_fronts
 
     plotted = [r for r in rows if r.status == "ok" and r.reference_kind == "path"]
     chosen = {id(r) for r in plotted}
@@ -225,9 +225,9 @@ def _page(scene: str, light: str, profile: str, rows: list, cache: Path | None) 
 
 def _reproduced(results_path: Path) -> tuple[list[Reproduced], list[str]]:
     """Tables and figures with a complete report run in the store, newest per profile."""
-    from .. import measurements
-    from ..profiles import PROFILES
-    from ..reproduction import FIGURES, TABLES
+    from prtbench.api.profiles import PROFILES
+    from prtbench.bench.reproduction import FIGURES, TABLES
+    from prtbench.store import measurements
 
     found, missing = [], []
     for kind, registry in (("table", TABLES), ("figure", FIGURES)):
@@ -251,7 +251,7 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
     PrtbenchError
         A missing store, or one without rows (one line naming the command that fills it).
     """
-    from ..results import ResultsStore
+    from prtbench.store.results import ResultsStore
 
     results_path = Path(results_path)
     if not results_path.exists():
@@ -270,7 +270,7 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
         raise PrtbenchError(f"results store '{results_path}' has no ok rows against the path "
                             f"reference; {FILL_COMMAND}")
     reproduced, missing = _reproduced(results_path)
-    from .stability import collect as stability_pages
+    from prtbench.site.stability import collect as stability_pages
 
     return SiteData(results_path=results_path, pages=pages, reproduced=reproduced,
                     missing_reproductions=missing, rows=rows,
@@ -282,8 +282,8 @@ def mitsuba_variants(rows: list, *, cache: Path | None = None) -> list[str]:
 
     Rows do not store it; each cached path-traced reference records it in its header.
     """
-    from .. import renders
-    from ..imageio import read_exr_metadata
+    from prtbench.io.imageio import read_exr_metadata
+    from prtbench.render import renders
 
     found, seen = set(), set()
     for row in rows:
@@ -309,9 +309,9 @@ def provenance(rows: list, *, cache: Path | None = None, measured: list[dict] = 
     Mitsuba variant from the cached references' headers (:func:`mitsuba_variants`).
 
     ``measured`` adds the (profile, git_sha, renderer, device) of a report run's measurement
-    rows (:func:`prtbench.measurements.provenance`): a figure of panels stores few result rows.
+    rows (:func:`prtbench.store.measurements.provenance`): a figure of panels stores few result rows.
     """
-    from ..tradeoff.pareto import noise_ceiling_db
+    from prtbench.tradeoff.pareto import noise_ceiling_db
 
     variants = mitsuba_variants(rows, cache=cache)
 

@@ -1,6 +1,6 @@
 """The site's PNGs: display images at several exposures, thumbnails and FLIP error maps.
 
-Every PNG derives from cached EXRs (a view's render and its reference, :mod:`prtbench.renders`)
+Every PNG derives from cached EXRs (a view's render and its reference, :mod:`prtbench.render.renders`)
 by the display transform of DESIGN.md §7, ``clip(srgb(2^ev · exposure · hdr), 0, 1)``. At
 ``ev = 0`` it is exactly the image the metrics were computed on; the other stops
 (:data:`STOPS`) are what the scene page's exposure control switches between: pre-exposed
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assets import sha256_of
-from ..cache import cache_root, content_key
+from prtbench.api.cache import cache_root, content_key
+from prtbench.io.assets import sha256_of
 
 #: Exposure stops (EV relative to the scene's exposure) of the full-size display images.
 STOPS = (-2, -1, 0, 1, 2)
@@ -46,7 +46,7 @@ class ImageMaker:
     site : Path
         The folder the pages are written to; images go under ``site/images``.
     cache : Path, optional
-        Cache root (default :func:`prtbench.cache.cache_root`).
+        Cache root (default :func:`prtbench.api.cache.cache_root`).
     """
 
     def __init__(self, site: Path, *, cache: Path | None = None):
@@ -64,7 +64,7 @@ class ImageMaker:
         return self._hashes[path]
 
     def _linear(self, path: Path) -> np.ndarray:
-        from ..imageio import read_exr
+        from prtbench.io.imageio import read_exr
 
         if path not in self._pixels:
             if len(self._pixels) > 64:  # references repeat across a page; renders do not
@@ -74,7 +74,7 @@ class ImageMaker:
 
     def _png(self, key_parts: tuple, make, target: str) -> str:
         """Cached PNG of ``make()`` ((H, W, 3) float in [0, 1]) copied to ``site/target``."""
-        from ..imageio import write_png
+        from prtbench.io.imageio import write_png
 
         cached = self.cache / _KIND / f"{content_key('site-png', IMAGES_VERSION, *key_parts)}.png"
         if cached.is_file():
@@ -94,7 +94,7 @@ class ImageMaker:
 
     def display(self, exr: Path, *, exposure: float, ev: int, target: str) -> str:
         """Full-size display PNG of ``exr`` at ``ev`` stops; returns ``target`` (site-relative)."""
-        from ..imageio import display
+        from prtbench.io.imageio import display
 
         return self._png(("display", self.source_hash(exr), repr(float(exposure)), int(ev)),
                          lambda: display(self._linear(exr), exposure=float(exposure) * 2.0 ** ev),
@@ -102,7 +102,7 @@ class ImageMaker:
 
     def thumbnail(self, exr: Path, *, exposure: float, target: str) -> str:
         """Thumbnail (0 EV display, longest side :data:`THUMB_SIZE`) of ``exr``."""
-        from ..imageio import display
+        from prtbench.io.imageio import display
 
         return self._png(("thumb", self.source_hash(exr), repr(float(exposure)), THUMB_SIZE),
                          lambda: _shrink(display(self._linear(exr), exposure=float(exposure))),
@@ -112,8 +112,8 @@ class ImageMaker:
              thumb: bool = False) -> str:
         """FLIP error map (magma) of the 0 EV display images of ``render`` against ``reference``."""
         def make() -> np.ndarray:
-            from ..imageio import display
-            from ..metrics import error_map
+            from prtbench.bench.metrics import error_map
+            from prtbench.io.imageio import display
 
             image = error_map(display(self._linear(render), exposure=float(exposure)),
                               display(self._linear(reference), exposure=float(exposure)))

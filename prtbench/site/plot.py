@@ -20,7 +20,7 @@ _SYMBOLS = ("circle", "square", "triangle-up", "triangle-down", "diamond", "cros
 def _style(method: str) -> tuple[str, str]:
     from plotly.colors import qualitative
 
-    from ..method import METHODS
+    from prtbench.api.method import METHODS
 
     names = METHODS.names()
     index = names.index(method) if method in names else len(names) + sum(map(ord, method))

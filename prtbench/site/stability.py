@@ -68,10 +68,10 @@ def collect(results_path: Path) -> list[StabilityPage]:
     -------
     list of StabilityPage
     """
-    from ..profiles import PROFILES
-    from ..stability.matrix import stored_rows, stored_runs
-    from ..stability.outcome import OUTCOMES
-    from ..stability.report import IMPORTED_FROM, method_summary
+    from prtbench.api.profiles import PROFILES
+    from prtbench.stability.matrix import stored_rows, stored_runs
+    from prtbench.stability.outcome import OUTCOMES
+    from prtbench.stability.report import IMPORTED_FROM, method_summary
 
     pages = []
     for profile in PROFILES:

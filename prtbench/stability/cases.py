@@ -10,7 +10,7 @@ a translation by 10⁵, a grazing view, flipped normals, degenerate triangles, c
 surfaces) and, for methods that accept glossy materials, the Phong exponents.
 
 Every case is measured against the method's *moderate* case: the profile's defaults plus the
-method's regression-case overrides (:func:`prtbench.regress.regression_case`), on the base
+method's regression-case overrides (:func:`prtbench.bench.regress.regression_case`), on the base
 scene (``sphere-over-plane`` unless the method refuses it, then its regression scene) under
 ``sky``, one view.
 """
@@ -23,7 +23,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import PrtbenchError
+from prtbench.api.errors import PrtbenchError
 
 #: Profiles the stability matrix runs in (``smoke`` is a subset: fewer values per rule).
 PROFILES = ("smoke", "quick")
@@ -237,7 +237,7 @@ def base_case(method_cls, *, scene_file: str | None = None,
     regression case's config overrides always apply (they make the smoke profile's training
     or lighting meaningful). ``label`` names the base scene in rows and reports.
     """
-    from ..regress import regression_case
+    from prtbench.bench.regress import regression_case
 
     regression = regression_case(method_cls)
     overrides = dict(regression.get("overrides", {}))
@@ -267,7 +267,7 @@ def case_base_scene(name: str, variant: str, params: Mapping[str, Any]):
     by its path, size and modification time)."""
     from pathlib import Path
 
-    from ..scene import get_scene
+    from prtbench.scene.model import get_scene
 
     key = (str(name), variant, tuple(sorted((k, str(v)) for k, v in params.items())))
     if Path(str(name)).is_file():
@@ -327,7 +327,7 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
 
 def light_cases(method_cls, *, profile: str) -> list[Case]:
     """Every extreme light (:data:`prtbench.stability.lights.LIGHTS`); smoke keeps four."""
-    from .lights import LIGHTS
+    from prtbench.stability.lights import LIGHTS
 
     names = list(LIGHTS) if profile == "quick" else ["black", "huge-constant", "below-horizon",
                                                      "sun-0.1deg"]
@@ -345,7 +345,7 @@ WAVELET_PER_VERTEX = ("wavelet-vertex", "wavelet-tp")
 
 def light_advice(method_cls, light: str) -> str:
     """What to do instead of the extreme ``light``, in the terms of the method's basis."""
-    from .edges import PER_VERTEX_METHODS
+    from prtbench.stability.edges import PER_VERTEX_METHODS
 
     knobs, name = _knob_names(method_cls), getattr(method_cls, "name", "")
     if not _wavelet_lit(method_cls):
@@ -495,10 +495,10 @@ def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
     it gets the moderate case only (its refusal is the answer, and every other case would
     repeat it).
     """
-    from . import edges
+    from prtbench.stability import edges
 
     if profile not in PROFILES:
-        from ..errors import UnknownNameError
+        from prtbench.api.errors import UnknownNameError
 
         raise UnknownNameError("stability profile", profile, PROFILES)
     base = base_case(method_cls, scene_file=scene_file, scene_params=scene_params)
@@ -523,7 +523,7 @@ def select(cases: Sequence[Case], names: Sequence[str] | None) -> list[Case]:
     if not names:
         return list(cases)
     known = {c.name for c in cases}
-    from ..errors import UnknownNameError
+    from prtbench.api.errors import UnknownNameError
 
     for name in names:
         if name not in known:

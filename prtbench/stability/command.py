@@ -13,21 +13,21 @@ def run_command(args: argparse.Namespace) -> int:
     Every output location, the profile, the methods and the case names are checked before
     any case runs.
     """
-    from .. import outputs
-    from ..method import METHODS
-    from ..results import default_path
-    from .cases import PROFILES
-    from .matrix import load_rows, plan, run_matrix
+    from prtbench.api.method import METHODS
+    from prtbench.bench import outputs
+    from prtbench.stability.cases import PROFILES
+    from prtbench.stability.matrix import load_rows, plan, run_matrix
+    from prtbench.store.results import default_path
 
     if args.profile not in PROFILES:
-        from ..errors import UnknownNameError
+        from prtbench.api.errors import UnknownNameError
 
         raise UnknownNameError("stability profile", args.profile, PROFILES)
     if args.timeout is not None and not args.timeout > 0:
-        from ..errors import InvalidInputError
+        from prtbench.api.errors import InvalidInputError
 
         raise InvalidInputError(f"--timeout {args.timeout}; accepted: seconds > 0")
-    from .matrix import CORE, table_name
+    from prtbench.stability.matrix import CORE, table_name
 
     scene_file, scene_params, label = _scene(args)  # a bad file fails here, before any work
     methods = args.method or ([*METHODS.names()] if scene_file else [*METHODS.names(), CORE])
@@ -41,7 +41,7 @@ def run_command(args: argparse.Namespace) -> int:
         if not args.from_store:
             return 0
     if args.from_store:
-        from .matrix import stored_rows
+        from prtbench.stability.matrix import stored_rows
 
         every = [*METHODS.names()] if scene_file else [*METHODS.names(), CORE]
         return _write(stored_rows(profile=args.profile, results_path=results,
@@ -71,10 +71,10 @@ def expected_cases(methods, *, profile: str, scene_file=None, scene_params=None
                    ) -> dict[str, list[str]]:
     """Method -> its catalogue's case names at ``profile`` (the report's "Not measured" list);
     :data:`prtbench.stability.matrix.CORE` -> the SH core's row names."""
-    from ..method import METHODS
-    from .cases import method_cases
-    from .core import core_case_names
-    from .matrix import CORE
+    from prtbench.api.method import METHODS
+    from prtbench.stability.cases import method_cases
+    from prtbench.stability.core import core_case_names
+    from prtbench.stability.matrix import CORE
 
     return {m: (core_case_names(profile=profile) if m == CORE else
                 [c.name for c in method_cases(METHODS.get(m), profile=profile,
@@ -85,10 +85,10 @@ def expected_cases(methods, *, profile: str, scene_file=None, scene_params=None
 def _import(args: argparse.Namespace, results: Path | None, table: str) -> None:
     """``--import-csv``: the CSV's rows into the store, everything checked before the write
     (so that a following ``--from-store`` cannot fail on what was just stored)."""
-    from .. import outputs
-    from ..errors import InvalidInputError
-    from ..results import default_path
-    from .importing import import_csv
+    from prtbench.api.errors import InvalidInputError
+    from prtbench.bench import outputs
+    from prtbench.stability.importing import import_csv
+    from prtbench.store.results import default_path
 
     measuring = [flag for flag, value in (("--method", args.method), ("--case", args.case),
                                           ("--out", args.out), ("--timeout", args.timeout))
@@ -116,13 +116,13 @@ def _scene(args: argparse.Namespace):
     The label is the built scene's name (a file's carries its content hash)."""
     if not args.scene:
         if args.scene_param:
-            from ..errors import InvalidInputError
+            from prtbench.api.errors import InvalidInputError
 
             raise InvalidInputError("--scene-param without --scene; accepted: --scene PATH "
                                     "--scene-param KEY=VALUE")
         return None, None, None
-    from ..config import parse_overrides
-    from .cases import case_base_scene
+    from prtbench.api.config import parse_overrides
+    from prtbench.stability.cases import case_base_scene
 
     params = parse_overrides(args.scene_param or [])
     scene = case_base_scene(args.scene, "diffuse", params)
@@ -133,14 +133,14 @@ def _write(rows, args: argparse.Namespace, run_id: str | None, *,
            stem: str = "table-stability", expected=None) -> int:
     """Reports (and JSON) of ``rows``; 1 when any row failed. ``expected``: method -> case
     names the report lists as not measured when they have no row."""
-    from .. import strict_json
-    from .report import method_summary, write_reports
+    from prtbench.api import strict_json
+    from prtbench.stability.report import method_summary, write_reports
 
     for path in write_reports(rows, Path(args.reports), stem=stem, expected=expected,
                               notes=args.note or ()):
         print(f"wrote {path}")
     if args.json:
-        from ..cache import atomic_path
+        from prtbench.api.cache import atomic_path
 
         with atomic_path(Path(args.json)) as tmp:
             tmp.write_text(strict_json.dumps({"run_id": run_id, "profile": args.profile,

@@ -4,7 +4,7 @@ and without de-ringing windows, and the Phong zonal coefficients at extreme expo
 These rows have method ``sh-core`` in the stability table. No renderer is involved, so they
 are measured in the calling process (numpy only):
 
-* ``ringing``: for a light projected to n bands (optionally windowed, :func:`prtbench.sh.window`)
+* ``ringing``: for a light projected to n bands (optionally windowed, :func:`prtbench.transport.sh.window`)
   and reconstructed on a 64 × 128 direction grid, the most negative reconstructed radiance over
   the largest reconstructed radiance (0 for a non-negative reconstruction); ``rel_l2`` the
   relative L2 error of the reconstruction against the light's own radiance on that grid
@@ -35,7 +35,7 @@ GRID_ROWS = 64
 
 
 def _grid():
-    from prtbench.lights import lat_long_directions
+    from prtbench.transport.lights import lat_long_directions
 
     rows, cols = GRID_ROWS, 2 * GRID_ROWS
     u = (np.arange(cols) + 0.5) / cols
@@ -48,7 +48,7 @@ def _grid():
 
 def _ringing_row(full: np.ndarray, light_name: str, bands: int, window_kind: str, dirs,
                  weights, truth) -> dict[str, Any]:
-    from prtbench import sh
+    from prtbench.transport import sh
 
     # The first n² coefficients of the largest projection are the n-band projection (the basis
     # is orthonormal); the red channel: every case light is grey.
@@ -67,8 +67,8 @@ def _ringing_row(full: np.ndarray, light_name: str, bands: int, window_kind: str
 
 
 def _phong_row(s: float, bands: int = 16) -> dict[str, Any]:
-    from prtbench import sh
-    from prtbench.errors import PrtbenchError
+    from prtbench.api.errors import PrtbenchError
+    from prtbench.transport import sh
 
     row: dict[str, Any] = {"case": f"phong s={s:g} bands={bands}", "group": "sh-core",
                            "bands": bands, "shininess": s}
@@ -108,7 +108,7 @@ def core_case_names(*, profile: str) -> list[str]:
 
 def core_rows(*, profile: str) -> list[dict[str, Any]]:
     """Every SH-core row of ``profile``, classified (``outcome``, ``reason``, ``advice``)."""
-    from .lights import LIGHTS as CASE_LIGHTS
+    from prtbench.stability.lights import LIGHTS as CASE_LIGHTS
 
     dirs, weights = _grid()
     rows = []

@@ -24,7 +24,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from .cases import BASE_SCENE, Case, _accepts
+from prtbench.stability.cases import BASE_SCENE, Case, _accepts
 
 #: Methods that store their transfer per vertex: their cost grows with the mesh. Named because
 #: a method declares no storage kind the registry could be asked for.

@@ -30,8 +30,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInputError
-from .report import CSV_COLUMNS, IMPORTED_FROM
+from prtbench.api.errors import InvalidInputError
+from prtbench.stability.report import CSV_COLUMNS, IMPORTED_FROM
 
 #: Columns holding text (never parsed as numbers: a run id may be all digits).
 TEXT_COLUMNS = frozenset({
@@ -44,7 +44,7 @@ FLAG_COLUMNS = frozenset({"precompute_cached", "partial_run"})
 RECORD_COLUMNS = ("git_sha", "renderer", "device", "timestamp", "profile")
 #: What identifies one measurement of a case (a row imported twice has the same).
 IDENTITY = ("method", "case", "git_sha", "timestamp", "run_id")
-#: The store's timestamp format (:func:`prtbench.measurements._utc_now`): UTC, seconds. Rows
+#: The store's timestamp format (:func:`prtbench.store.measurements._utc_now`): UTC, seconds. Rows
 #: are ordered by comparing these strings, so no other form may enter.
 TIMESTAMP = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
 _ACCEPTED = "accepted: a table-stability CSV written by prtbench stability"
@@ -96,8 +96,8 @@ def _parse(value: str, column: str, where: str) -> Any:
 
 
 def _check_row(row: Mapping[str, Any], where: str) -> None:
-    from .cases import PROFILES
-    from .outcome import OUTCOMES
+    from prtbench.stability.cases import PROFILES
+    from prtbench.stability.outcome import OUTCOMES
 
     for column in ("method", "case", "timestamp"):
         if not row.get(column):
@@ -181,16 +181,16 @@ def _identity(row: Mapping[str, Any]) -> tuple[str, ...]:
 
 def _stored_identities(*, results_path: Path | None, table: str) -> set[tuple[str, ...]]:
     """The :data:`IDENTITY` of every row of ``table`` in the store."""
-    from .. import measurements
+    from prtbench.store import measurements
 
     frame = measurements.load(table, results_path=results_path)
     return {_identity(r) for r in frame.to_dict(orient="records")}
 
 
 def _batches(rows: Sequence[Mapping[str, Any]], run_id: str) -> list:
-    """The rows as :class:`prtbench.measurements.Batch` es of ``run_id``, one per distinct
+    """The rows as :class:`prtbench.store.measurements.Batch` es of ``run_id``, one per distinct
     (revision, renderer, device, time, profile): the stored record carries those."""
-    from ..measurements import Batch
+    from prtbench.store.measurements import Batch
 
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for row in rows:
@@ -231,8 +231,8 @@ def import_csv(path: Path, *, results_path: Path | None, table: str | None = Non
         that the store does not already hold, or (``need_complete_run``) no complete run;
         nothing is written then.
     """
-    from .. import measurements
-    from .matrix import TABLE, stored_runs
+    from prtbench.stability.matrix import TABLE, stored_runs
+    from prtbench.store import measurements
 
     table = table or TABLE
     rows, source = read_rows(Path(path))

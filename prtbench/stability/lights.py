@@ -1,6 +1,6 @@
 """The extreme lights of the stability matrix (issue #15), built procedurally.
 
-Each is an ordinary :class:`prtbench.lights.EnvironmentLight` (so the reference and every method
+Each is an ordinary :class:`prtbench.transport.lights.EnvironmentLight` (so the reference and every method
 see the same map) plus the display-exposure factor its case applies to the scene, so that an
 image lit by a light a million times brighter is displayed, and measured, at the brightness of
 the usual one: the case then measures the method's arithmetic at that magnitude, not the sRGB
@@ -61,7 +61,7 @@ class StabilityLight:
 
 def _directions(height: int) -> np.ndarray:
     """Sample directions (H, 2H, 3) of a lat-long map (Mitsuba's sample positions)."""
-    from prtbench.lights import lat_long_directions
+    from prtbench.transport.lights import lat_long_directions
 
     w = 2 * height
     u = (np.arange(w) + 0.5) / w
@@ -70,7 +70,7 @@ def _directions(height: int) -> np.ndarray:
 
 
 def _light(name: str, image: np.ndarray):
-    from prtbench.lights import EnvironmentLight
+    from prtbench.transport.lights import EnvironmentLight
 
     return EnvironmentLight(f"stability-{name}", image.astype(np.float32),
                             source=f"procedural:stability-{name}")
@@ -97,7 +97,7 @@ def below_horizon():
 
 def _irradiance_scale(image_mask: np.ndarray, height: int, direction: np.ndarray) -> float:
     """Radiance that makes the texels of ``image_mask`` deliver irradiance π along ``direction``."""
-    from prtbench.lights import EnvironmentLight
+    from prtbench.transport.lights import EnvironmentLight
 
     probe = EnvironmentLight("probe", np.repeat(image_mask[..., None], 3, -1).astype(np.float32))
     dirs = probe.texel_directions()
@@ -107,7 +107,7 @@ def _irradiance_scale(image_mask: np.ndarray, height: int, direction: np.ndarray
 
 
 def _sun_direction() -> np.ndarray:
-    from prtbench.lights import SUN_DIRECTION
+    from prtbench.transport.lights import SUN_DIRECTION
 
     return np.asarray(SUN_DIRECTION, dtype=np.float64)
 
@@ -141,7 +141,7 @@ def near_delta_sun():
 @lru_cache(maxsize=None)
 def hdri_2048():
     """The ``sky`` light's bilinear interpolant sampled on a 2048 × 1024 map."""
-    from prtbench.lights import get_light
+    from prtbench.transport.lights import get_light
 
     sky = get_light("sky")
     dirs = _directions(1024)

@@ -1,7 +1,7 @@
 """The stability matrix: every case of every chosen method, measured, classified and stored.
 
 Each case's numbers go into the results store as one row of the measurement table
-``stability`` (:mod:`prtbench.measurements`), the moment the case finishes, so an interrupted
+``stability`` (:mod:`prtbench.store.measurements`), the moment the case finishes, so an interrupted
 matrix keeps what it measured; the render rows the runner writes carry the same case name in
 their ``scene_params``. When every case has run, a ``table stability`` report run names the
 runner runs it used: the report (:mod:`prtbench.stability.report`) prints only stored rows.
@@ -17,9 +17,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .cases import Case, base_case, method_cases, select
-from .outcome import classify
-from .report import IMPORTED_FROM
+from prtbench.stability.cases import Case, base_case, method_cases, select
+from prtbench.stability.outcome import classify
+from prtbench.stability.report import IMPORTED_FROM
 
 #: Name of the measurement table (and of the report run).
 TABLE = "stability"
@@ -65,7 +65,7 @@ def plan(methods: Sequence[str], *, profile: str, cases: Sequence[str] | None = 
     InvalidInputError
         A scene file that cannot be imported (the scenefile message).
     """
-    from ..method import METHODS
+    from prtbench.api.method import METHODS
 
     out = []
     known: set[str] = set()
@@ -111,9 +111,9 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
         An asset file as the base scene (:func:`plan`); its rows go to
         :func:`table_name` of the scene's name.
     """
-    from .. import measurements
-    from ..runner import device_description
-    from .run import run_case
+    from prtbench.bench.runner import device_description
+    from prtbench.stability.run import run_case
+    from prtbench.store import measurements
 
     planned = plan(methods, profile=profile, cases=cases, scene_file=scene_file,
                    scene_params=scene_params)
@@ -154,7 +154,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                 _log(echo, f"[stability] {method} {case.name}: {outcome} ({reason}) "
                            f"{measured.get('wall_s', 0.0):.1f} s")
     if CORE in methods:
-        from .core import core_rows
+        from prtbench.stability.core import core_rows
 
         for row in core_rows(profile=profile):
             measurements.record(table, [row], results_path=results_path, run_id=run_id,
@@ -168,7 +168,7 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
 def load_rows(run_id: str, *, results_path: Path | None,
               table: str = TABLE) -> list[dict[str, Any]]:
     """The stored rows of one matrix run (of measurement ``table``), in measured order."""
-    from .. import measurements
+    from prtbench.store import measurements
 
     frame = measurements.load(table, run_ids=[run_id], results_path=results_path)
     rows = frame.to_dict(orient="records")
@@ -191,8 +191,8 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
     PrtbenchError
         No (complete, unless ``partial``) stability run for ``profile`` in the store.
     """
-    from .. import measurements
-    from ..errors import PrtbenchError
+    from prtbench.api.errors import PrtbenchError
+    from prtbench.store import measurements
 
     runs, complete = stored_runs(profile=profile, results_path=results_path, partial=partial,
                                  table=table)
@@ -229,9 +229,9 @@ def stored_runs(*, profile: str, results_path: Path | None, partial: bool = Fals
     row), complete ones only unless ``partial``; and the set of complete ones.
 
     Both empty when the store or its tables do not exist; an unusable store raises
-    :class:`~prtbench.errors.InvalidInputError` (the store's reader).
+    :class:`~prtbench.api.errors.InvalidInputError` (the store's reader).
     """
-    from .. import measurements
+    from prtbench.store import measurements
 
     complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
         results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
@@ -245,7 +245,7 @@ def stored_runs(*, profile: str, results_path: Path | None, partial: bool = Fals
 def _catalogue_order(method: str, profile: str):
     """Sort key of a method's rows: moderate first, then the catalogue's order (cases it no
     longer has last, by name)."""
-    from ..method import METHODS
+    from prtbench.api.method import METHODS
 
     try:
         names = [c.name for c in method_cases(METHODS.get(method), profile=profile)]

@@ -3,7 +3,7 @@
 * ``failed`` — always a bug: a crash, a traceback, a hang past the timeout, a multi-line error
   message, NaN/Inf anywhere in the artifact or the image, or a finite image whose masked
   metric is NaN (nothing was measured);
-* ``refused`` — a clear one-line :class:`prtbench.errors.PrtbenchError`: the correct answer to
+* ``refused`` — a clear one-line :class:`prtbench.api.errors.PrtbenchError`: the correct answer to
   an impossible request;
 * ``degraded`` — finite, but its masked PSNR against the reference is more than
   :data:`PSNR_MARGIN_DB` below the moderate case's, or its masked FLIP more than

@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .outcome import FLIP_MARGIN, OUTCOMES, PSNR_MARGIN_DB
+from prtbench.stability.outcome import FLIP_MARGIN, OUTCOMES, PSNR_MARGIN_DB
 
 #: The column (and stored key) naming the CSV a row was imported from
 #: (:mod:`prtbench.stability.importing`); empty for rows measured into the store.
@@ -296,7 +296,7 @@ def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path, *,
     content hash), so it never overwrites the committed ``table-stability.*``. ``expected`` and
     ``notes``: :func:`format_markdown`.
     """
-    from ..cache import atomic_path
+    from prtbench.api.cache import atomic_path
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

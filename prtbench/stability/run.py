@@ -2,8 +2,8 @@
 
 Each case runs in a fresh (spawned) process: a crash or a hang of one case is measured as
 ``failed`` and cannot take the matrix down, and the process's peak resident memory is the
-case's own. Inside, the case is an ordinary :func:`prtbench.runner.prepare` /
-:func:`prtbench.runner.execute` job (path reference, results rows in the store, images under
+case's own. Inside, the case is an ordinary :func:`prtbench.bench.runner.prepare` /
+:func:`prtbench.bench.runner.execute` job (path reference, results rows in the store, images under
 the output folder), on the case's scene (:func:`prtbench.stability.scenes.case_scene`) and
 light; then the artifact (a cache hit) and the image are inspected for non-finite values,
 their peak magnitude against the storage type's range, and the image is compared with the
@@ -23,13 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from .cases import Case
+from prtbench.stability.cases import Case
 
 #: Seconds a case may run before it counts as a hang (``failed``), per profile.
 TIMEOUTS = {"smoke": 300.0, "quick": 1200.0}
 #: Storage knobs whose value names the dtype the renderer keeps the artifact in.
 STORAGE_KNOBS = ("storage", "precision")
-#: A display value below half an 8-bit step prints as black (as prtbench.degeneracy).
+#: A display value below half an 8-bit step prints as black (as prtbench.bench.degeneracy).
 BLACK_DISPLAY = 0.5 / 255.0
 
 
@@ -82,8 +82,8 @@ def artifact_stats(arrays: Mapping[str, np.ndarray], dtype: np.dtype) -> dict[st
 
 def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
              results_path: Path | None, out_dir: Path):
-    from ..runner import RunRequest
-    from .lights import LIGHTS
+    from prtbench.bench.runner import RunRequest
+    from prtbench.stability.lights import LIGHTS
 
     light = LIGHTS[case.light].build() if case.light else base["light"]
     variant = "glossy" if case.shininess is not None else base["variant"]
@@ -98,10 +98,11 @@ def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
 
 def _inspect(prepared, summary, case: Case, moderate_exr: str | None) -> dict[str, Any]:
     """Artifact and image facts of a finished run (the artifact is a cache hit)."""
-    from .. import imageio, metrics
-    from ..method import load_or_precompute
-    from ..reference import render_reference
-    from ..runner import geometry_mask
+    from prtbench.api.method import load_or_precompute
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     scene, config = prepared.scene, prepared.config
     artifact = load_or_precompute(prepared.method_cls, scene, config, progress=False)
@@ -143,7 +144,7 @@ def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, i
     what the method's ``compress_dimension(config)`` declares where its artifact is not a
     dense per-vertex array (wavelet-vertex's sparse Haar rows).
     """
-    from ..method import load_or_precompute
+    from prtbench.api.method import load_or_precompute
 
     out = {}
     for knob, what in derived.items():
@@ -182,9 +183,9 @@ def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, An
     """
     import resource
 
-    from ..errors import PrtbenchError
-    from ..runner import execute, prepare
-    from .scenes import case_scene
+    from prtbench.api.errors import PrtbenchError
+    from prtbench.bench.runner import execute, prepare
+    from prtbench.stability.scenes import case_scene
 
     start = time.perf_counter()
     out: dict[str, Any] = {"error_kind": "", "error": ""}

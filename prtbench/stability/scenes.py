@@ -3,7 +3,7 @@
 The transformed scene keeps the base scene's name and records the case in ``params`` (which
 the runner stores with every row and which enters no cache key: the content hash covers the
 geometry and materials themselves). Built scenes pass the same extent check as any built-in
-or file scene (:func:`prtbench.scene_params.check_extent`), so a scale whose float32 ray
+or file scene (:func:`prtbench.scene.params.check_extent`), so a scale whose float32 ray
 offsets are meaningless is refused with the same one-line message a user would get.
 """
 
@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
-from ..errors import InvalidInputError
-from ..scene import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
-from ..sdf.nodes import SdfNode
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
+from prtbench.transport.sdf.nodes import SdfNode
 
 #: Height of the grazing camera above the ground, as a fraction of the scene's diagonal.
 GRAZING_HEIGHT = 1e-3
@@ -43,7 +43,7 @@ def _transform_view(view: View, scale: float, offset: np.ndarray) -> View:
 
 
 def _transform_sdf(sdf, scale: float, offset: np.ndarray):
-    from ..sdf import SdfSurface
+    from prtbench.transport.sdf import SdfSurface
 
     root = sdf.root.scale(scale) if scale != 1.0 else sdf.root
     if np.any(offset):
@@ -73,7 +73,7 @@ class DistanceScale(SdfNode):
         return d * self.factor, m
 
     def _emit(self, cg, p):
-        from ..sdf.nodes import glsl_float
+        from prtbench.transport.sdf.nodes import glsl_float
 
         d, m = self.child._emit(cg, p)
         return cg.let("float", "d", f"{d} * {glsl_float(self.factor)}"), m
@@ -184,10 +184,10 @@ def case_scene(base: Scene, case) -> Scene:
     ------
     InvalidInputError
         A Phong exponent outside the material's range, or a transformed scene outside the
-        extents float32 ray offsets allow (:func:`prtbench.scene_params.check_extent`).
+        extents float32 ray offsets allow (:func:`prtbench.scene.params.check_extent`).
     """
-    from ..scene_params import check_extent
-    from .lights import LIGHTS
+    from prtbench.scene.params import check_extent
+    from prtbench.stability.lights import LIGHTS
 
     offset = TRANSLATE_AXIS * case.translate
     scale = float(case.scale)

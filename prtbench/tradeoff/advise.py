@@ -32,11 +32,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInputError, PrtbenchError, UnknownNameError
-from .expressions import COSTS, Constraint, parse_constraints
-from .search import (CellResult, Evaluation, Judge, as_dict, best_per_method, brief, fmt,
-                     normalise, search)
-from .search_space import Candidate, SearchSpace, analysis_json, build_space
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.tradeoff.expressions import COSTS, Constraint, parse_constraints
+from prtbench.tradeoff.search import (
+    CellResult,
+    Evaluation,
+    Judge,
+    as_dict,
+    best_per_method,
+    brief,
+    fmt,
+    normalise,
+    search,
+)
+from prtbench.tradeoff.search_space import Candidate, SearchSpace, analysis_json, build_space
 
 #: Row field of each cost kind the fallback ``cost_fn`` reads.
 _ROW_COSTS = {"frame_ms": "frame_ms", "memory": "memory_bytes", "precompute": "precompute_s"}
@@ -82,7 +91,9 @@ def _evaluation_json(e: Evaluation) -> dict[str, Any]:
 
 def _default_analysis(scene, light, *, light_changes: str):
     try:
-        from .analyze import analyze_scene  # WIRING: prtbench.tradeoff.analyze (analyze helper)
+        from prtbench.tradeoff.analyze import (
+            analyze_scene,  # WIRING: prtbench.tradeoff.analyze (analyze helper)
+        )
     except ImportError:
         raise PrtbenchError("advise needs the scene analysis (prtbench.tradeoff.analyze), which "
                             "this build lacks; pass analysis= explicitly") from None
@@ -101,7 +112,9 @@ def _row_cost(row: Mapping, kind: str) -> float:
 
 def _default_cost_fn() -> Callable[[Mapping, str], float]:
     try:
-        from .cost import cost_value  # WIRING: prtbench.tradeoff.cost (pareto helper)
+        from prtbench.tradeoff.cost import (
+            cost_value,  # WIRING: prtbench.tradeoff.cost (pareto helper)
+        )
     except ImportError:
         return _row_cost
     return cost_value
@@ -113,7 +126,7 @@ def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None 
 
     Parameters
     ----------
-    cells : sequence of prtbench.reproduction.Cell
+    cells : sequence of prtbench.bench.reproduction.Cell
     profile : str
     results_path : Path, optional
         The store the rows go to when ``store``.
@@ -125,7 +138,7 @@ def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None 
     list of CellResult
         One per cell, in order; a cell that fails has its one-line error and no rows.
     """
-    from ..runner import RunRequest, execute, prepare, summary_rows
+    from prtbench.bench.runner import RunRequest, execute, prepare, summary_rows
 
     out = []
     for cell in cells:
@@ -244,13 +257,13 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         Bad scene, scene parameter, light, variant, profile, expressions, cost kind or results
         store (all checked before any work).
     """
-    from .. import outputs
-    from ..lights import get_light
-    from ..method import METHODS
-    from ..profiles import get_profile
-    from ..reproduction import Cell
-    from ..results import default_path
-    from ..scene import SCENES, get_scene
+    from prtbench.api.method import METHODS
+    from prtbench.api.profiles import get_profile
+    from prtbench.bench import outputs
+    from prtbench.bench.reproduction import Cell
+    from prtbench.scene.model import SCENES, get_scene
+    from prtbench.store.results import default_path
+    from prtbench.transport.lights import get_light
 
     # Everything a user can get wrong, before any work.
     get_profile(profile)

@@ -19,7 +19,7 @@ light variation        the user's ``light_changes``                ``fixed_light
 =====================  ==========================================  =============================
 
 Methods are ruled out through their own ``light_dependence`` and ``light_baking_knobs``
-(:class:`prtbench.method.Method`), never by name.
+(:class:`prtbench.api.method.Method`), never by name.
 """
 
 from __future__ import annotations
@@ -28,12 +28,12 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InvalidInputError, UnknownNameError
-from . import measures
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.tradeoff import measures
 
 if TYPE_CHECKING:
-    from ..lights import EnvironmentLight
-    from ..scene import Scene
+    from prtbench.scene.model import Scene
+    from prtbench.transport.lights import EnvironmentLight
 
 #: Accepted ``light_changes``, and the light dependences each one rules out.
 LIGHT_CHANGES = {"none": (), "rotate": ("fixed-light",), "family": ("fixed-light", "family")}
@@ -101,7 +101,7 @@ class SceneAnalysis:
     decisions: list[dict[str, str]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
-        """Plain JSON-able dict of every field (write it with :func:`prtbench.strict_json.dumps`)."""
+        """Plain JSON-able dict of every field (write it with :func:`prtbench.api.strict_json.dumps`)."""
         return asdict(self)
 
 
@@ -122,7 +122,7 @@ def light_variation(light_changes: str) -> tuple[list[dict[str, str]], list[dict
     ruled_out : list of {"method", "why"}
     restricted : list of {"method", "knob", "value", "why"}
     """
-    from ..method import METHODS
+    from prtbench.api.method import METHODS
 
     excluded = LIGHT_CHANGES[check_light_changes(light_changes)]
     change = {"rotate": "a rotating light", "family": "lights that change family"}.get(light_changes)
@@ -178,15 +178,15 @@ def analyze_scene(scene: "Scene | str", light: "EnvironmentLight | str", *,
     """
     import sys
 
-    from ..lights import get_light
-    from ..raytrace import Tracer
+    from prtbench.transport.lights import get_light
+    from prtbench.transport.raytrace import Tracer
 
     check_light_changes(light_changes)
     if not (isinstance(target, (int, float)) and 0.0 < float(target) < 1.0):
         raise InvalidInputError(f"target lighting error {target!r}; accepted: a number in (0, 1)")
     target = float(target)
     if isinstance(scene, str):
-        from ..scene import get_scene
+        from prtbench.scene.model import get_scene
 
         scene = get_scene(scene)
     light = get_light(light) if isinstance(light, str) else light

@@ -13,7 +13,7 @@
     ``precompute_s``: wall time of the artifact's precompute.
 ``ops``
     A device-independent operation count of one frame (:func:`ops_counts`), from the method's
-    own model (:meth:`prtbench.method.Method.op_counts`, declared beside the method's code from
+    own model (:meth:`prtbench.api.method.Method.op_counts`, declared beside the method's code from
     what its shaders do per vertex, per covered pixel and per frame) and the row's stored
     facts (config, vertex and triangle counts, covered pixels, resolution, resident bytes).
     It needs only the store, so it ranks configurations on a machine without a GPU; its rank
@@ -48,7 +48,7 @@ from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from typing import Any
 
-from ..errors import PrtbenchError, UnknownNameError
+from prtbench.api.errors import PrtbenchError, UnknownNameError
 
 COST_KINDS = ("frame_ms", "memory", "precompute", "ops")
 #: Units, for reports and axis labels.
@@ -94,7 +94,7 @@ def _finite(value: Any) -> float | None:
 
 
 def row_config(row: Any) -> dict:
-    """The row's method config as a dict (rows from :func:`prtbench.results.load` hold JSON)."""
+    """The row's method config as a dict (rows from :func:`prtbench.store.results.load` hold JSON)."""
     config = _get(row, "config")
     if isinstance(config, str):
         config = json.loads(config) if config else {}
@@ -121,8 +121,8 @@ def ops_counts(row: Any) -> dict[str, float]:
         field the model needs (rows stored before schema 4 have no covered-pixel count), or the
         stored config no longer fits the method's Config.
     """
-    from .. import config as config_mod
-    from ..method import METHODS
+    from prtbench.api import config as config_mod
+    from prtbench.api.method import METHODS
 
     method = str(_get(row, "method"))
     facts = {}
@@ -223,7 +223,7 @@ def ops_rank_correlation(rows: Iterable[Any]) -> tuple[float, float, int]:
     return float(result.statistic), float(result.pvalue), len(pairs)
 
 
-# -- building blocks of the GLSL the methods share (prtbench/shaders) ---------------------------
+# -- building blocks of the GLSL the methods share (prtbench/render/shaders) ---------------------------
 # Methods' op_counts compose these; each mirrors one function of the core shaders.
 
 def raster_counts(*, vertices: int, triangles: int, pixels: int, varyings: int,
@@ -269,7 +269,7 @@ def shade_transferred_madds(bands: int) -> float:
 @lru_cache(maxsize=16)
 def triple_product_entries(bands: int) -> int:
     """Non-zeros of Γ for ``bands`` (the length of the list ``triple_product`` loops over)."""
-    from ..sh import triple_product_sparse
+    from prtbench.transport.sh import triple_product_sparse
 
     return int(len(triple_product_sparse(bands)[1]))
 

@@ -1,12 +1,12 @@
 """Target and budget expressions of ``prtbench advise`` (``"psnr_masked>=28"``, ``"frame_ms<=33,memory<=256MiB"``).
 
 An expression is a comma-separated list of ``NAME OP VALUE[UNIT]`` fragments, OP one of
-``>=``, ``<=``, ``>``, ``<``. NAME is a metric key of :data:`prtbench.metrics.METRICS`, full
+``>=``, ``<=``, ``>``, ``<``. NAME is a metric key of :data:`prtbench.bench.metrics.METRICS`, full
 frame or masked (``psnr``, ``psnr_masked``, ``flip_masked``, …), or a cost kind (``frame_ms``,
 ``memory``, ``precompute``, ``ops``). Costs take units and are held in one base unit each:
 milliseconds for ``frame_ms`` (``ms``, ``s``), bytes for ``memory`` (``B``, ``KiB``, ``MiB``,
 ``GiB``), seconds for ``precompute`` (``ms``, ``s``); ``ops`` is a plain count; PSNR accepts
-``dB``. Parsing is strict: anything else is one :class:`~prtbench.errors.InvalidInputError`
+``dB``. Parsing is strict: anything else is one :class:`~prtbench.api.errors.InvalidInputError`
 naming the bad fragment and what is accepted. A constraint in the "wrong" direction for its
 metric (``flip_masked>=0.1``) is legal and is simply evaluated as written.
 """
@@ -19,7 +19,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from ..errors import InvalidInputError, PrtbenchError
+from prtbench.api.errors import InvalidInputError, PrtbenchError
 
 #: Cost kind -> (base unit, accepted units and their factor to the base unit).
 COST_UNITS: dict[str, tuple[str, dict[str, float]]] = {
@@ -37,8 +37,8 @@ _FRAGMENT = re.compile(
 
 
 def metric_names() -> tuple[str, ...]:
-    """Every metric key a target may name: each metric of :mod:`prtbench.metrics`, full and masked."""
-    from ..metrics import METRICS
+    """Every metric key a target may name: each metric of :mod:`prtbench.bench.metrics`, full and masked."""
+    from prtbench.bench.metrics import METRICS
 
     return tuple(key for name in METRICS for key in (name, f"{name}_masked"))
 
@@ -96,7 +96,7 @@ class Constraint:
         lower_bound = self.op in (">=", ">")
         if self.kind == "cost":
             return None if lower_bound else False
-        from ..metrics import higher_is_better
+        from prtbench.bench.metrics import higher_is_better
 
         return lower_bound == higher_is_better(self.name)
 

@@ -1,4 +1,4 @@
-"""Declarative sweep grids: a TOML file or CLI options → validated :class:`~prtbench.reproduction.Cell` s.
+"""Declarative sweep grids: a TOML file or CLI options → validated :class:`~prtbench.bench.reproduction.Cell` s.
 
 A sweep file (``sweeps/*.toml``, read with :mod:`tomllib`) has defaults at the top level and
 one ``[[method]]`` table per method::
@@ -22,7 +22,7 @@ cell's ``label`` is its grid values (as the method's config parses them). A meth
 ``grid`` contributes one cell (its ``fixed`` knobs, else its profile defaults).
 
 Everything is validated before any work, with the method's own strict config
-(``METHODS.get(name).make_config(overrides, profile=...)``) and :func:`prtbench.runner.prepare`:
+(``METHODS.get(name).make_config(overrides, profile=...)``) and :func:`prtbench.bench.runner.prepare`:
 unknown keys, methods, knobs, scenes and lights, and a value the config rejects on its own are
 one-line errors naming the bad value and the accepted ones. A *combination* that only fails
 together (a method that cannot handle one of the scenes, knobs that contradict each other) is
@@ -39,8 +39,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInputError, PrtbenchError, UnknownNameError
-from ..reproduction import Cell
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.bench.reproduction import Cell
 
 #: Keys accepted at the top level of a sweep file.
 TOP_KEYS = ("profile", "scene", "scenes", "light", "lights", "variant", "views", "reference",
@@ -162,7 +162,7 @@ def expand(spec: Mapping[str, Any], *, source: str, profile: str | None = None) 
     Writes nothing; raises a one-line :class:`PrtbenchError` (prefixed with ``source``) for
     any mistake, and when a method has no valid cell.
     """
-    from ..profiles import get_profile
+    from prtbench.api.profiles import get_profile
 
     where = f"sweep {source}" if source == "command line" else f"sweep file '{source}'"
     _check_keys(spec, TOP_KEYS, where, "top-level key")
@@ -241,8 +241,8 @@ def _knob_values(table: Mapping[str, Any], key: str, where: str) -> dict[str, An
 
 def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profile: str,
                    where: str) -> tuple[list[Cell], list[tuple[Cell, str]]]:
-    from ..method import METHODS
-    from ..scene import SCENES, VARIANTS
+    from prtbench.api.method import METHODS
+    from prtbench.scene.model import SCENES, VARIANTS
 
     _check_keys(table, METHOD_KEYS, where, "[[method]] key")
     name = _typed(table, "name", str, where)
@@ -305,7 +305,7 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
             dropped.append((cell, str(exc)))
             continue
         # Label and overrides as the config parsed them ("3" on the command line is 3).
-        from ..config import to_dict
+        from prtbench.api.config import to_dict
 
         typed = to_dict(prepared.config)
         typed_cell = Cell(method=name, scene=scene, label={k: typed[k] for k in grid},
@@ -323,7 +323,7 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
 
 
 def _check_light(light: str, where: str) -> None:
-    from ..lights import LIGHTS
+    from prtbench.transport.lights import LIGHTS
 
     if light in LIGHTS.names() or re.search(r"\.(exr|hdr)$", light, re.IGNORECASE):
         return  # a path is checked (read) by prepare
@@ -339,13 +339,13 @@ _VALIDATED_MAX = 1024
 
 def prepare_cell(cell: Cell, *, profile: str, results_path: Path | None = None,
                  store_results: bool = False, reuse: bool = False):
-    """:func:`prtbench.runner.prepare` of ``cell`` in ``profile`` (no images; rows only if
+    """:func:`prtbench.bench.runner.prepare` of ``cell`` in ``profile`` (no images; rows only if
     ``store_results``, which also checks the store at ``results_path``). Writes nothing.
 
     ``reuse``: return the run prepared by an earlier ``reuse`` call for the same arguments
     (for validation only; a cell is always measured from a fresh ``prepare``).
     """
-    from ..runner import RunRequest, prepare
+    from prtbench.bench.runner import RunRequest, prepare
 
     memo = repr((cell, profile, results_path, store_results)) if reuse else None
     if memo is not None and memo in _VALIDATED:

@@ -16,14 +16,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import sh
-from ..lights import LUMINANCE_WEIGHTS
-from ..raytrace import Tracer, offset_origins
-from ..transfer import RayPattern, compute_transfer, tangent_frames
+from prtbench.transport import sh
+from prtbench.transport.lights import LUMINANCE_WEIGHTS
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.transfer import RayPattern, compute_transfer, tangent_frames
 
 if TYPE_CHECKING:
-    from ..lights import EnvironmentLight
-    from ..scene import Scene
+    from prtbench.scene.model import Scene
+    from prtbench.transport.lights import EnvironmentLight
 
 #: Bands measured for lights (the most any SH method here stores).
 MAX_LIGHT_BANDS = 16
@@ -148,7 +148,7 @@ def phong_filtered_errors(light: "EnvironmentLight", shininess: float, *,
 
     The glossy part of shading is the light filtered by the lobe (s+1)/(2π)·max(r·ω, 0)^s about
     the reflection vector r; this measures it at ``n_axes`` Fibonacci axes, direct integration
-    against the SH convolution with :func:`prtbench.sh.phong_zonal`.
+    against the SH convolution with :func:`prtbench.transport.sh.phong_zonal`.
     """
     s = float(shininess)
     # μ^s only where it exceeds 1e-9 of its peak: the power is the costly part, and the rest of
@@ -191,7 +191,7 @@ def glossiness(scene: "Scene") -> dict[str, Any]:
 def lobe_errors(shininess: float, *, max_bands: int = MAX_LOBE_BANDS) -> list[float]:
     """Relative L2 error of the Phong lobe truncated to n bands, n = 1..``max_bands``.
 
-    Energy of bands l < n is Σ g_l² with g_l from :func:`prtbench.sh.phong_zonal` (the exact
+    Energy of bands l < n is Σ g_l² with g_l from :func:`prtbench.transport.sh.phong_zonal` (the exact
     moment recurrence); the total is the lobe's exact L2 norm, ∫ ((s+1)/(2π))² max(μ,0)^{2s} dω
     = (s+1)² / (2π(2s+1)), so the error is √(1 − Σ_{l<n} g_l² / total).
     """
@@ -239,7 +239,7 @@ def occluded_fraction(tracer: Tracer, points: np.ndarray, normals: np.ndarray, *
     """Fraction of cosine-weighted hemisphere rays about ``normals`` that hit geometry, (N,).
 
     Rays are stratified (a shifted Fibonacci lattice through Malley's method, spun per point,
-    as in :mod:`prtbench.transfer`) and leave from origins offset along the normal.
+    as in :mod:`prtbench.transport.transfer`) and leave from origins offset along the normal.
     """
     n = len(points)
     pattern = RayPattern(n, rays_per_point, seed)
@@ -256,7 +256,7 @@ def occlusion(scene: "Scene", *, n_points: int = 4096, rays_per_point: int = 256
 
     The hemisphere is that of the geometric (face) normal, so a convex object alone measures 0
     exactly (its own faces cannot block rays leaving their plane). Rays are cosine-weighted
-    (what diffuse shading weighs), stratified as in :mod:`prtbench.transfer`.
+    (what diffuse shading weighs), stratified as in :mod:`prtbench.transport.transfer`.
 
     Returns
     -------
@@ -288,7 +288,7 @@ def tessellation_error(scene: "Scene", light: "EnvironmentLight", *, bands: int 
                        tracer: Tracer | None = None, progress: bool = False) -> dict[str, Any]:
     """Error of interpolating per-vertex transfer inside triangles, against direct transfer there.
 
-    Transfer (:func:`prtbench.transfer.compute_transfer`, ``bands`` bands) is computed at the
+    Transfer (:func:`prtbench.transport.transfer.compute_transfer`, ``bands`` bands) is computed at the
     vertices of the triangles under ``n_points`` area-uniform points and at the points themselves
     (interpolated shading normals, as a renderer uses); the vertex transfer is interpolated with
     the points' barycentric weights. Errors are relative RMS over the points, which sampling by
@@ -336,12 +336,12 @@ def interreflection(scene: "Scene", light: "EnvironmentLight", *, width: int = 1
                     height: int = 96, spp: int = 32, view_index: int = 0) -> dict[str, Any]:
     """Indirect share of a one-bounce path-traced render relative to direct only.
 
-    Renders one trajectory view with :func:`prtbench.reference.render_reference` at bounces 0
+    Renders one trajectory view with :func:`prtbench.render.reference.render_reference` at bounces 0
     and 1 and compares total linear luminance. The background is 0 in both (``hide_emitters``),
     so the ratio of sums equals the ratio of means over covered pixels. A scene without views
     gives ``indirect_fraction`` None and a ``why``.
     """
-    from ..reference import render_reference
+    from prtbench.render.reference import render_reference
 
     if len(scene.trajectory) == 0:
         return {"indirect_fraction": None, "why": "scene has no views"}

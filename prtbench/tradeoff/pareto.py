@@ -29,8 +29,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import PrtbenchError, UnknownNameError
-from . import cost as cost_mod
+from prtbench.api.errors import PrtbenchError, UnknownNameError
+from prtbench.tradeoff import cost as cost_mod
 
 #: Error metrics and whether higher is better.
 ERRORS = {"psnr_masked": True, "flip_masked": False}
@@ -348,20 +348,20 @@ def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
     Reads the store read-only; writes ``reports_dir/pareto-<scene>-<light>.{md,csv,png,svg}``
     atomically. Raises PrtbenchError (one line) for bad names and an empty selection.
     """
-    from ..scenefile import is_scene_path
+    from prtbench.scene.files import is_scene_path
 
     if is_scene_path(scene):
-        from ..scene import get_scene
+        from prtbench.scene.model import get_scene
 
         given = scene
         scene = get_scene(given, **(scene_params or {})).name
         hint = fill_hint(given, profile)
     else:
         hint = fill_hint(scene, profile)
-    from .. import outputs
-    from ..profiles import get_profile
-    from ..results import ResultsStore, default_path
-    from .pareto_report import write_reports
+    from prtbench.api.profiles import get_profile
+    from prtbench.bench import outputs
+    from prtbench.store.results import ResultsStore, default_path
+    from prtbench.tradeoff.pareto_report import write_reports
 
     check_error_kind(error)
     cost_mod.check_cost_kind(cost)

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from .expressions import Constraint, row_value
-from .search_space import Candidate, SearchSpace
+from prtbench.tradeoff.expressions import Constraint, row_value
+from prtbench.tradeoff.search_space import Candidate, SearchSpace
 
 
 @dataclass

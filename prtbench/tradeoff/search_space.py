@@ -35,7 +35,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import PrtbenchError
+from prtbench.api.errors import PrtbenchError
 
 #: Knobs whose range the analysis decides (the rest of ``main_knobs`` get generic ladders).
 ANALYSIS_KNOBS = ("sh_bands", "bounces", "visibility", "texture_resolution")
@@ -215,7 +215,7 @@ def _analysis_ladder(knob: str, f, default, tp, analysis, *, band_margin: int,
 def method_space(cls, name: str, scene, analysis, *, profile: str,
                  band_margin: int = 2) -> MethodSpace:
     """The searched ladders and candidates of one (unpruned) method."""
-    from .. import config as config_mod
+    from prtbench.api import config as config_mod
 
     base = cls.make_config(profile=profile)
     fields = {f.name: f for f in dataclasses.fields(cls.Config)}
@@ -260,7 +260,7 @@ def build_space(scene, analysis, *, profile: str, methods: Sequence[str] | None 
 
     Parameters
     ----------
-    scene : prtbench.scene.Scene
+    scene : prtbench.scene.model.Scene
         The scene (its variant decides which methods can render it).
     analysis : SceneAnalysis-like
         Has ``required_bands``, ``needs_glossy``, ``glossy_bands``, ``needs_shadows``,
@@ -276,7 +276,7 @@ def build_space(scene, analysis, *, profile: str, methods: Sequence[str] | None 
     -------
     SearchSpace
     """
-    from ..method import METHODS
+    from prtbench.api.method import METHODS
 
     names = list(methods) if methods is not None else METHODS.names()
     spaces, pruned = [], []

@@ -1,6 +1,6 @@
 """Run sweep cells on Dask distributed; only the client writes the results store (DESIGN.md §15).
 
-:func:`run_cells` validates every cell (:func:`prtbench.runner.prepare`) and the results store
+:func:`run_cells` validates every cell (:func:`prtbench.bench.runner.prepare`) and the results store
 first, then skips the cells already measured (their rows carry the same :func:`cell_key` and
 status ``ok`` or ``degenerate``), and runs the rest:
 
@@ -8,7 +8,7 @@ status ``ok`` or ``degenerate``), and runs the rest:
 - otherwise on an embedded ``LocalCluster`` (worker processes started with ``spawn``, so no
   worker inherits a GL context or a Mitsuba variant; one thread each; ``workers`` of them,
   default one per core), or on the existing cluster at ``scheduler`` (``tcp://HOST:PORT``),
-  unchanged (the Dask side: :mod:`prtbench.tradeoff.cluster`).
+  unchanged (the Dask side: :mod:`prtbench.bench.cluster`).
 
 Every task runs one cell through the ordinary runner (:func:`measure_cell`: ``prepare`` +
 ``execute`` with no images and no store) and returns its rows, or the one-line error of a
@@ -35,11 +35,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInputError
-from ..reproduction import Cell
-from .cluster import (check_worker_threads, connect, cores, local_cluster, one_line,
-                      register_setup)
-from .grid import prepare_cell
+from prtbench.api.errors import InvalidInputError
+from prtbench.bench.cluster import (
+    check_worker_threads,
+    connect,
+    cores,
+    local_cluster,
+    one_line,
+    register_setup,
+)
+from prtbench.bench.reproduction import Cell
+from prtbench.tradeoff.grid import prepare_cell
 
 #: Statuses of stored rows that count as measured (failed cells store nothing).
 MEASURED = ("ok", "degenerate")
@@ -77,9 +83,9 @@ class SweepOutcome:
 
 
 def code_version() -> str:
-    """The code version in cell keys: the full :func:`prtbench.results.git_sha`, ``+dirty``
+    """The code version in cell keys: the full :func:`prtbench.store.results.git_sha`, ``+dirty``
     included, so results of a modified tree never pass for a clean commit's."""
-    from ..results import git_sha
+    from prtbench.store.results import git_sha
 
     return git_sha()
 
@@ -89,14 +95,14 @@ def cell_key(prepared, *, code: str) -> str:
 
     Parameters
     ----------
-    prepared : prtbench.runner.PreparedRun
+    prepared : prtbench.bench.runner.PreparedRun
         The cell's validated run: method, full config (defaults and profile overrides
         resolved), scene, variant, scene parameters, light, view count, resolution, profile
         and reference.
     code : str
         :func:`code_version`.
     """
-    from ..config import to_dict
+    from prtbench.api.config import to_dict
 
     req = prepared.request
     identity = {
@@ -115,10 +121,10 @@ def measure_cell(cell: Cell, *, profile: str, cell_key: str, workers: int) -> di
     Returns
     -------
     dict
-        ``{"key", "rows"}`` (the :func:`prtbench.runner.summary_rows`, recording ``workers``
+        ``{"key", "rows"}`` (the :func:`prtbench.bench.runner.summary_rows`, recording ``workers``
         and ``key``) or ``{"key", "error"}`` with the one-line error.
     """
-    from ..runner import execute, summary_rows
+    from prtbench.bench.runner import execute, summary_rows
 
     key = cell_key
     start = time.perf_counter()
@@ -133,7 +139,7 @@ def measure_cell(cell: Cell, *, profile: str, cell_key: str, workers: int) -> di
 
 def _stored_keys(results_path: Path | None, profile: str) -> dict[str, set[int]]:
     """cell key → the ``workers`` values of its measured rows in the store."""
-    from ..results import ResultsStore, default_path
+    from prtbench.store.results import ResultsStore, default_path
 
     path = Path(results_path) if results_path is not None else default_path()
     if not path.exists():
@@ -148,8 +154,8 @@ def _stored_keys(results_path: Path | None, profile: str) -> dict[str, set[int]]
 def _validate(cells: Sequence[Cell], profile: str, results_path: Path | None
               ) -> list[tuple[Cell, str]]:
     """(cell, key) of every distinct cell; raises on the first invalid cell, writing nothing."""
-    from ..outputs import check_results_store
-    from ..results import default_path
+    from prtbench.bench.outputs import check_results_store
+    from prtbench.store.results import default_path
 
     check_results_store("--results", Path(results_path) if results_path else default_path())
     code = code_version()
@@ -199,7 +205,7 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
         Duplicates (same :func:`cell_key`) run once.
     profile : str
     results_path : Path, optional
-        The results store (default :func:`prtbench.results.default_path`).
+        The results store (default :func:`prtbench.store.results.default_path`).
     workers : int, optional
         Local Dask workers (default: one per core); 0 runs serially in this process without
         Dask. Ignored with ``scheduler``.
@@ -224,7 +230,7 @@ def run_cells(cells: Sequence[Cell], *, profile: str, results_path: Path | None 
         An invalid cell, an unusable results store or an unreachable scheduler, before any
         work and with nothing written.
     """
-    from ..results import ResultsStore
+    from prtbench.store.results import ResultsStore
 
     if workers is not None and workers < 0:
         raise InvalidInputError(f"--workers {workers}; accepted: 0 (serial, no Dask) or more")
@@ -342,8 +348,8 @@ def retime_serial(outcome: SweepOutcome, *, profile: str, results_path: Path | N
     """
     from tqdm import tqdm
 
-    from ..results import ResultsStore
-    from .cluster import cores
+    from prtbench.bench.cluster import cores
+    from prtbench.store.results import ResultsStore
 
     stored = _stored_keys(results_path, profile)
     todo = [c for c in outcome.cells if c.status in ("done", "skipped")

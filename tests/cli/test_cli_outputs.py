@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 from prtbench.cli import main
-from prtbench.results import ResultsStore
-
-from ..prtbench.test_runner_validation import patch_render
+from prtbench.store.results import ResultsStore
+from tests.prtbench.test_runner_validation import patch_render
 
 RUN = ["run", "--method", "vertex", "--scene", "sphere-over-plane", "--profile", "smoke",
        "--light", "sky", "--quiet"]
@@ -114,7 +113,7 @@ def test_results_is_read_only_and_checks_its_arguments(place, capsys, monkeypatc
 
 
 def test_results_rejects_an_unknown_profile(place, capsys):
-    from prtbench.results import ResultRow
+    from prtbench.store.results import ResultRow
 
     ResultsStore(place / "r.sqlite").append([ResultRow(method="vertex", scene="plane", profile="smoke")])
     assert main(["results", "--results", "r.sqlite", "--profile", "fast"]) == 2

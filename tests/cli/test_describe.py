@@ -10,9 +10,9 @@ import typing
 
 import pytest
 
+from prtbench.api.method import METHODS
+from prtbench.api.registry import Registry
 from prtbench.cli import main
-from prtbench.method import METHODS
-from prtbench.registry import Registry
 
 HEAVY = ("torch", "moderngl", "embreex", "mitsuba", "drjit")
 
@@ -25,12 +25,12 @@ def _subprocess(argv: list[str]) -> subprocess.CompletedProcess:
 
 
 def _declared_methods() -> set[str]:
-    import tomllib
+    """The methods the family folders' spec modules declare (read as text, not imported)."""
     from pathlib import Path
 
-    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
-    with open(pyproject, "rb") as fh:
-        return set(tomllib.load(fh)["project"]["entry-points"]["prtbench.methods"])
+    root = Path(__file__).resolve().parents[2] / "methods"
+    return {m.group(1) for spec in root.glob("*/spec.py")
+            for m in re.finditer(r'MethodSpec\(\s*"([a-z0-9-]+)"', spec.read_text())}
 
 
 def test_list_methods_prints_each_summary_and_imports_no_heavy_backend():
@@ -38,7 +38,7 @@ def test_list_methods_prints_each_summary_and_imports_no_heavy_backend():
     assert "HEAVY [] STATUS 0" in out
     lines = out.splitlines()[:-1]
     names = METHODS.names()
-    # Every method pyproject declares (the installed entry points must not lag behind it).
+    # Every method a family folder declares, and only those.
     declared = _declared_methods()
     assert len(lines) == len(names) == len(declared) and set(names) == declared
     for line, name in zip(lines, names):
@@ -46,6 +46,35 @@ def test_list_methods_prints_each_summary_and_imports_no_heavy_backend():
         assert summary and line.split(None, 1) == [name, " ".join(summary.split())]
     # The summaries start in one column.
     assert len({line.index(METHODS.get(n).summary[:8]) for line, n in zip(lines, names)}) == 1
+
+
+def test_list_methods_imports_no_method_code():
+    # The summaries come from the family folders' spec modules alone.
+    code = ("import sys; from prtbench.cli import main\n"
+            "main(['list', 'methods'])\n"
+            "print('LOADED', sorted(m for m in sys.modules if m.startswith('methods.')\n"
+            "      and not m.endswith('.spec')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.splitlines()[-1] == "LOADED " + repr(sorted(
+        f"methods.{p}" for p in _family_packages()))
+
+
+def _family_packages() -> list[str]:
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2] / "methods"
+    return [p.parent.name for p in root.glob("*/spec.py")]
+
+
+def test_pyproject_declares_no_builtin_method():
+    import tomllib
+    from pathlib import Path
+
+    with open(Path(__file__).resolve().parents[2] / "pyproject.toml", "rb") as fh:
+        entry_points = tomllib.load(fh)["project"]["entry-points"]
+    assert "prtbench.methods" not in entry_points
+    assert entry_points["prtbench.method_packages"] == {"builtin": "methods"}
 
 
 @pytest.mark.parametrize("name", METHODS.names())
@@ -111,8 +140,9 @@ def test_describe_unknown_method_is_one_line_exit_2(capsys):
 
 
 def test_summaries_survive_a_broken_plugin():
+    METHODS.get("vertex")  # the class takes its summary from its family's spec
     registry = Registry("thing")
-    registry.add_lazy("good", "methods.vertex:VertexPRT")
+    registry.add_lazy("good", "methods.vertex.diffuse:VertexPRT")
     registry.add_lazy("broken", "prtbench_no_such_module:Thing")
     summaries = registry.summaries()
     assert list(summaries) == ["broken", "good"]

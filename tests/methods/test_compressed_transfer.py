@@ -8,19 +8,18 @@ one-line errors before any work; compressed smoke runs beat the trivial images.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
-import methods.vertex_glossy  # noqa: F401  (registers sloan-matrix)
-from prtbench.cache import content_key
-from prtbench.compress import knobs
-from prtbench.config import to_dict
-from prtbench.errors import PrtbenchError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
-from prtbench.scene import get_scene
-from .refusal import assert_run_refused  # noqa: E402
+import methods.vertex.glossy  # noqa: F401  (registers sloan-matrix)
+from prtbench.api.cache import content_key
+from prtbench.api.config import to_dict
+from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import METHODS, Artifact, artifact_key, load_or_precompute
+from prtbench.scene.model import get_scene
+from prtbench.transport.compress import knobs
+from prtbench.transport.lights import get_light
+from tests.methods.refusal import assert_run_refused  # noqa: E402
 
 BASE = {"sh_bands": 3, "rays_per_point": 32}
 
@@ -148,8 +147,8 @@ def test_compress_on_a_method_without_stored_transfer_is_refused():
     ("sloan-matrix", {"compress": "cpca", "clusters": 16, "pca_vectors": 4}),
 ])
 def test_compressed_smoke_run_beats_the_trivial_images(method, form):
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request(method, overrides=form)  # its regression case, smoke profile
     summary = run(request, progress=False, echo=False)

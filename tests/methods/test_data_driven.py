@@ -10,15 +10,19 @@ import pytest
 import methods.data_driven  # noqa: F401 - registers the method
 from methods.data_driven import basis as basis_mod
 from methods.data_driven.families import sample_family
-from methods.data_driven.lights import (DirectionalLight, PointLight, SpotLight, median_cut,
-                                        rotate_environment)
+from methods.data_driven.lights import (
+    DirectionalLight,
+    PointLight,
+    SpotLight,
+    median_cut,
+    rotate_environment,
+)
 from methods.data_driven.measurement import eliminate, hull_mesh, measurement_points
-from prtbench.errors import InvalidInputError, UnknownNameError
-from prtbench.geometry import grid_plane, sample_surface
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
-
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.geometry import grid_plane, sample_surface
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 # --- measurement points --------------------------------------------------------------------
 
@@ -88,7 +92,7 @@ def test_median_cut_conserves_power_and_finds_the_sun():
         lights = median_cut(light, 16)
         power = np.sum([l.irradiance for l in lights], axis=0)
         assert np.allclose(power, light.total_power(), rtol=2e-3), name
-    from prtbench.lights import SUN_DIRECTION
+    from prtbench.transport.lights import SUN_DIRECTION
 
     lights = median_cut(get_light("sun"), 32)
     near = sum(l.irradiance[0] for l in lights
@@ -243,7 +247,7 @@ def test_point_light_over_a_plane_is_analytic():
 def test_gl_direct_vector_matches_ray_traced_shadows():
     from methods.data_driven.bake import analytic_irradiance
     from methods.data_driven.dataset import measure_direct
-    from prtbench.raytrace import Tracer
+    from prtbench.transport.raytrace import Tracer
 
     scene = get_scene("sphere-over-plane", radius=0.5, height=1.0, plane_subdivisions=4)
     mp = measurement_points(scene, 400, placement="surface", seed=2)
@@ -270,7 +274,7 @@ def test_embree_bake_equals_mitsuba_indirect():
     from methods.data_driven.bake import bake_indirect, object_albedo
     from methods.data_driven.lightmap import build_lightmap
     from methods.data_driven.reference import render_light_reference
-    from prtbench.raytrace import Tracer
+    from prtbench.transport.raytrace import Tracer
 
     scene = get_scene("cornell")
     view = scene.trajectory.views[0]
@@ -325,7 +329,7 @@ def spot_artifact():
 def test_gl_transfer_and_blend_match_numpy(spot_artifact):
     from methods.data_driven.dataset import build_dataset
     from methods.data_driven.method import fit_basis
-    from prtbench.raytrace import Tracer
+    from prtbench.transport.raytrace import Tracer
 
     scene, cls, config, artifact = spot_artifact
     dataset = build_dataset(scene, config)
@@ -361,7 +365,7 @@ def test_gl_interleaved_and_gamma_paths_match_numpy(spot_artifact, channels, gam
     from methods.data_driven.basis import encode, predict, to_examples
     from methods.data_driven.dataset import build_dataset
     from methods.data_driven.method import fit_basis
-    from prtbench.raytrace import Tracer
+    from prtbench.transport.raytrace import Tracer
 
     scene, cls, base, _ = spot_artifact
     config = dataclasses.replace(base, channels=channels, gamma=gamma, basis=8, ridge=0.1,
@@ -466,9 +470,8 @@ def test_validate_rejects_glossy_and_unknown_lights():
 
 
 def test_runner_smoke(tmp_path):
-    from prtbench.runner import run
-
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("data-driven", out_dir=tmp_path, write_images=True)  # cornell, smoke
     summary = run(request, progress=False, echo=False)

@@ -4,18 +4,17 @@ with J, convergence towards the path reference, memory, bad input."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
-import methods.factored_brdf as factored  # noqa: F401  (registers factored-brdf)
-import methods.vertex  # noqa: F401
-import methods.vertex_glossy  # noqa: F401
-from prtbench.errors import InvalidInputError, PrtbenchError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import get_scene
-from .refusal import assert_run_refused  # noqa: E402
+import methods.factored_brdf.method as factored  # noqa: F401  (registers factored-brdf)
+import methods.vertex.diffuse  # noqa: F401
+import methods.vertex.glossy  # noqa: F401
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import get_scene
+from prtbench.transport.lights import get_light
+from tests.methods.refusal import assert_run_refused  # noqa: E402
 
 
 def _scene(variant: str, **params):
@@ -53,8 +52,8 @@ def test_one_term_on_a_diffuse_scene_renders_what_vertex_renders():
 
 
 def test_term_transfer_with_unit_weight_is_the_diffuse_transfer():
-    from prtbench.compress.factor import HemisphereGrid
-    from prtbench.transfer import compute_transfer
+    from prtbench.transport.compress.factor import HemisphereGrid
+    from prtbench.transport.transfer import compute_transfer
 
     scene = _scene("glossy")
     positions, normals, _, _ = scene.merged()
@@ -89,7 +88,7 @@ def test_error_against_the_unfactored_sloan_matrix_falls_with_terms():
 
 
 def test_extreme_exponents_stay_finite_and_a_constant_lobe_is_one_term():
-    from prtbench.scene import Material, Scene, SceneObject
+    from prtbench.scene.model import Material, Scene, SceneObject
 
     base = _scene("glossy")
 
@@ -124,7 +123,7 @@ def test_bad_requests_are_one_line_errors_before_any_work(sets, match, tmp_path,
 
 
 def test_textured_materials_are_refused_and_unknown_knobs_too():
-    from prtbench.scene import Material, Scene, SceneObject, Texture
+    from prtbench.scene.model import Material, Scene, SceneObject, Texture
 
     cls = METHODS.get("factored-brdf")
     base = _scene("glossy")
@@ -138,8 +137,8 @@ def test_textured_materials_are_refused_and_unknown_knobs_too():
 
 
 def test_smoke_run_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("factored-brdf")  # plants glossy, 32×32 ground, sun; smoke
     summary = run(request, progress=False, echo=False)

@@ -8,13 +8,21 @@ import math
 import numpy as np
 import pytest
 
-import methods.vertex_glossy  # noqa: F401  registers the methods
-from methods._glossy_bounces import bounce_matrices
-from prtbench import sh
-from prtbench.errors import InvalidInputError, PrtbenchError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, Artifact, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, TriangleMesh, View, get_scene
+import methods.vertex.glossy  # noqa: F401  registers the methods
+from methods.vertex.bounces import bounce_matrices
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.api.method import METHODS, Artifact, load_or_precompute
+from prtbench.scene.model import (
+    Material,
+    Scene,
+    SceneObject,
+    Trajectory,
+    TriangleMesh,
+    View,
+    get_scene,
+)
+from prtbench.transport import sh
+from prtbench.transport.lights import get_light
 from scenes.primitives import uv_sphere
 
 
@@ -94,7 +102,7 @@ def test_glossy_floor_reflection_matches_quadrature():
     # reflect(−ω, +Y) = Pω), so at the quad's vertices
     #     M¹_ki = ks·√(4π/(2l_i+1))·g_l_i(s) ∫_{ω_y<0} Y_k(ω) Y_i(Pω) (−ω_y) dω,
     # evaluated here by Gauss-Legendre × uniform-φ quadrature.
-    from prtbench.geometry import grid_plane
+    from prtbench.scene.geometry import grid_plane
 
     ks, shininess, bands = 0.8, 16.0, 4
     floor = grid_plane(400.0, 1)
@@ -180,7 +188,8 @@ def test_bounces_knob_keeps_zero_bounce_caches_and_validates():
 
 
 def _masked_psnr(image, ref, scene, mask):
-    from prtbench import imageio, metrics
+    from prtbench.bench import metrics
+    from prtbench.io import imageio
 
     values = metrics.compute_metrics(imageio.display(image, exposure=scene.exposure),
                                      imageio.display(ref, exposure=scene.exposure), mask=mask)
@@ -188,8 +197,8 @@ def _masked_psnr(image, ref, scene, mask):
 
 
 def test_one_bounce_matrices_approach_the_one_bounce_reference():
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("cornell", variant="glossy", subdivisions=8).with_views(1)
     view, light, width, height = scene.trajectory.views[0], get_light("sky"), 64, 48

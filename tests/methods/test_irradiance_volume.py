@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-import methods.irradiance_volume as iv  # registers "irradiance-volume"
-from prtbench.errors import InvalidInputError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.raytrace import Tracer
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+import methods.irradiance_volume.method as iv  # registers "irradiance-volume"
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer
 from scenes.primitives import box
 
 
@@ -129,9 +129,10 @@ def test_texture_layout_places_each_coefficient():
 # --- convergence towards the path reference ---------------------------------------------------
 
 def test_psnr_rises_with_grid_resolution():
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("sphere-over-plane").with_views(1)
     view, light, width, height = scene.trajectory.views[0], get_light("sky"), 96, 72
@@ -160,7 +161,7 @@ def test_extremes_stay_finite():
 # --- bad input and the runner -----------------------------------------------------------------
 
 def test_glossy_scene_is_rejected_with_one_line():
-    from prtbench.runner import RunRequest, prepare
+    from prtbench.bench.runner import RunRequest, prepare
 
     with pytest.raises(InvalidInputError) as info:
         prepare(RunRequest(method="irradiance-volume", scene="sphere-over-plane", variant="glossy",
@@ -176,9 +177,8 @@ def test_resolution_outside_2_to_64_is_rejected(resolution):
 
 
 def test_smoke_run_through_the_runner():
-    from prtbench.runner import run
-
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("irradiance-volume")  # plants diffuse under sky, smoke profile
     summary = run(request, progress=False, echo=False)

@@ -10,10 +10,10 @@ import pytest
 import methods.learnt  # noqa: F401 - registers "learnt"
 from methods.learnt.model import LearntModel
 from methods.learnt.network import NetworkSpec, encode, projection_canvas, train_network
-from prtbench.errors import InvalidInputError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 #: A small but well-trained network for analytic scenes (seconds on 2 cores).
 SMALL = {"samples": 8000, "rays_per_point": 128, "heldout_vertices": 400, "heldout_rays": 256,
@@ -106,7 +106,7 @@ def plants_glossy():
 
 @pytest.mark.parametrize("product", ["tpfl", "tp"])
 def test_glsl_and_torch_renderers_agree_on_covered_pixels(plants_glossy, product):
-    from prtbench.config import with_overrides
+    from prtbench.api.config import with_overrides
 
     scene, cls, config, artifact = plants_glossy
     assert LearntModel.from_arrays(artifact.arrays).partition.n_groups == 2
@@ -128,7 +128,7 @@ def test_glsl_and_torch_renderers_agree_on_covered_pixels(plants_glossy, product
 
 
 def test_too_large_network_for_glsl_fails_before_any_work():
-    from prtbench.runner import RunRequest, prepare
+    from prtbench.bench.runner import RunRequest, prepare
 
     with pytest.raises(InvalidInputError) as info:
         prepare(RunRequest(method="learnt", scene="plants", profile="smoke",
@@ -141,7 +141,7 @@ def test_too_large_network_for_glsl_fails_before_any_work():
 
 
 def test_bad_knobs_are_rejected():
-    from prtbench.runner import RunRequest, prepare
+    from prtbench.bench.runner import RunRequest, prepare
 
     for overrides, text in (({"hidden": 30}, "multiples of 4"),
                             ({"loss": "huber"}, "projection"),
@@ -209,10 +209,9 @@ def test_extremes_stay_finite():
 
 
 def test_smoke_through_the_runner():
-    from prtbench.results import load
-    from prtbench.runner import run
-
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
+    from prtbench.store.results import load
 
     request = case_request("learnt", store_results=True)  # the regression case, smoke profile
     summary = run(request, progress=False, echo=False)
@@ -255,13 +254,13 @@ def test_heldout_vertices_are_never_training_points():
 def test_cached_training_data_follows_the_transfer_code_version(monkeypatch):
     # Training points and networks are cached by geometry; a new core TRANSFER_VERSION must
     # give them new keys too, or a transfer fix would keep serving networks fitted to the bug.
-    import prtbench.transfer
+    import prtbench.transport.transfer
     from methods.learnt.data import geometry_key
 
     scene = get_scene("sphere-over-plane", radius=0.5, height=1.0)
     before = geometry_key(scene)
-    version = prtbench.transfer.TRANSFER_VERSION
-    monkeypatch.setattr(prtbench.transfer, "TRANSFER_VERSION", version + 1)
+    version = prtbench.transport.transfer.TRANSFER_VERSION
+    monkeypatch.setattr(prtbench.transport.transfer, "TRANSFER_VERSION", version + 1)
     assert geometry_key(scene) != before
 
 

@@ -10,7 +10,7 @@ import pytest
 from methods.learnt import glsl
 from methods.learnt.network import Network, NetworkSpec, encode, predict
 from methods.learnt.subdivide import Partition
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
 
 
 def _random_network(spec: NetworkSpec, seed: int) -> Network:

@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
-import methods.learnt_sdf as learnt_sdf  # registers "learnt-sdf"
-from prtbench.config import with_overrides
-from prtbench.errors import InvalidInputError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, Trajectory, View
-from prtbench.sdf import Plane, SdfSurface, Sphere, sdf_scene_objects, union
+import methods.learnt.sdf as learnt_sdf  # registers "learnt-sdf"
+from prtbench.api.config import with_overrides
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import Material, Scene, Trajectory, View
+from prtbench.transport.lights import get_light
+from prtbench.transport.sdf import Plane, SdfSurface, Sphere, sdf_scene_objects, union
 
 #: Tiny training runs (seconds on one core).
 TINY = {"samples": 3000, "rays_per_point": 64, "heldout_points": 400, "heldout_rays": 256,
@@ -155,7 +155,7 @@ def test_more_samples_and_a_wider_network_lower_the_heldout_error():
 
 
 def test_mesh_scenes_and_bad_knobs_are_rejected_before_any_work():
-    from prtbench.runner import RunRequest, prepare
+    from prtbench.bench.runner import RunRequest, prepare
 
     with pytest.raises(InvalidInputError) as info:
         prepare(RunRequest(method="learnt-sdf", scene="plane", profile="smoke"))
@@ -174,10 +174,9 @@ def test_mesh_scenes_and_bad_knobs_are_rejected_before_any_work():
 
 
 def test_smoke_through_the_runner_beats_the_trivial_images():
-    from prtbench.results import load
-    from prtbench.runner import run
-
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
+    from prtbench.store.results import load
 
     request = case_request("learnt-sdf", store_results=True)  # sdf-car glossy, smoke
     summary = run(request, progress=False, echo=False)
@@ -192,7 +191,7 @@ def test_smoke_through_the_runner_beats_the_trivial_images():
 def test_cached_training_data_follows_the_sdf_transfer_code_version(monkeypatch):
     # A fix in SDF transfer (a new SDF_TRANSFER_VERSION) must retire the cached training data
     # and networks built on the old transfer, not only the transfer cache itself.
-    import prtbench.sdf.trace as sdf_trace
+    import prtbench.transport.sdf.trace as sdf_trace
 
     # The method's artifact (network + meta) is keyed by precompute_version, which names it.
     version = sdf_trace.SDF_TRANSFER_VERSION

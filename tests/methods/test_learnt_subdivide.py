@@ -8,9 +8,14 @@ import pytest
 import methods.learnt  # noqa: F401 - registers "learnt"
 import scenes.living_room  # noqa: F401 - registers "living-room" until its entry point exists
 from methods.learnt.data import TransferSamples, training_samples
-from methods.learnt.subdivide import (_Stats, build_partition, merge_by_variance,
-                                      object_prefix_groups, training_rows)
-from prtbench.scene import get_scene
+from methods.learnt.subdivide import (
+    _Stats,
+    build_partition,
+    merge_by_variance,
+    object_prefix_groups,
+    training_rows,
+)
+from prtbench.scene.model import get_scene
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -98,8 +103,8 @@ def test_no_seams_at_sub_scene_borders():
     # within the networks' own interior error.
     from methods.learnt.model import LearntModel
     from methods.learnt.network import predict
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.transfer import compute_transfer
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.transport.transfer import compute_transfer
 
     scene = get_scene("living-room")
     cls = METHODS.get("learnt")

@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.method import METHODS
-from prtbench.scene import Texture, get_scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS
+from prtbench.scene.model import Texture, get_scene
 
 DIFFUSE_ONLY = ["vertex", "irradiance-volume", "data-driven", "wavelet-vertex", "wavelet-texture"]
 

@@ -7,15 +7,14 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-import methods.neural_wavelet  # noqa: E402,F401  (registers the method without a reinstall)
-from prtbench.cache import cache_root  # noqa: E402
+import methods.neural_wavelet.method  # noqa: E402,F401  (registers the method without a reinstall)
+from methods.neural_wavelet.model import ModelSpec, NeuralWaveletModel, PixelInputs, wavelet_lookup
+from prtbench.api.cache import cache_root  # noqa: E402
+from prtbench.api.errors import InvalidInputError  # noqa: E402
+from prtbench.api.method import METHODS, load_or_precompute  # noqa: E402
 from prtbench.cli import main  # noqa: E402
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.lights import get_light  # noqa: E402
-from prtbench.method import METHODS, load_or_precompute  # noqa: E402
-from prtbench.neural_wavelet.model import (ModelSpec, NeuralWaveletModel,  # noqa: E402
-                                           PixelInputs, wavelet_lookup)
-from prtbench.scene import get_scene  # noqa: E402
+from prtbench.scene.model import get_scene  # noqa: E402
+from prtbench.transport.lights import get_light  # noqa: E402
 
 
 def _scene(variant="glossy"):
@@ -100,8 +99,8 @@ def test_model_arrays_round_trip_exactly():
 
 
 def test_gbuffer_pixels_are_the_ray_tracers_first_hits():
-    from prtbench.neural_wavelet.gbuffer import GBufferPass, pixel_rows
-    from prtbench.raytrace import Tracer
+    from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
+    from prtbench.transport.raytrace import Tracer
 
     scene = _scene()
     view = scene.trajectory.views[0]
@@ -124,8 +123,8 @@ def test_gbuffer_pixels_are_the_ray_tracers_first_hits():
 # --- training data: indirect only ---------------------------------------------------------------
 
 def test_indirect_is_full_minus_direct_and_adds_back_to_an_independent_full_render():
-    from prtbench.neural_wavelet.data import indirect_image
-    from prtbench.reference import render_reference
+    from methods.neural_wavelet.data import indirect_image
+    from prtbench.render.reference import render_reference
 
     scene, light = _scene(), get_light("sky")
     view = scene.trajectory.views[0]
@@ -143,7 +142,7 @@ def test_indirect_is_full_minus_direct_and_adds_back_to_an_independent_full_rend
 
 
 def test_nan_in_a_training_image_is_refused_and_nothing_is_cached(monkeypatch):
-    import prtbench.reference as reference
+    import prtbench.render.reference as reference
 
     real = reference.render_reference
 
@@ -244,7 +243,7 @@ def test_artifact_key_holds_the_training_cameras():
     """The training cameras are derived from the trajectory, so another trajectory of the same
     geometry is another artifact (it was the same key once, and a cache hit returned a model
     trained around other cameras); per-vertex transfer, which reads no camera, keeps one key."""
-    from prtbench.method import artifact_key
+    from prtbench.api.method import artifact_key
 
     cls = METHODS.get("neural-wavelet")
     config = cls.make_config({}, profile="smoke")
@@ -259,7 +258,7 @@ def test_artifact_key_holds_the_training_cameras():
 def test_a_tilted_light_moves_its_sun_by_the_tilt_and_keeps_its_power():
     """Turning about a horizontal axis carries the brightest direction s to R s (Rodrigues) and,
     being a rotation, keeps the total power up to the bilinear resampling's blur."""
-    from prtbench.neural_wavelet.data import tilted_light
+    from methods.neural_wavelet.data import tilted_light
 
     sun = get_light("sun")
     assert tilted_light(sun, 0.0, axis_azimuth_deg=30.0) is sun
@@ -279,9 +278,9 @@ def test_a_tilted_light_moves_its_sun_by_the_tilt_and_keeps_its_power():
     ("light_tilt", 30.0, True), ("random_lights", 4, True), ("relative_eps", 0.1, False)])
 def test_a_knob_added_later_keeps_the_keys_at_its_default_and_changes_them_otherwise(
         knob, value, changes_data):
-    from prtbench.method import artifact_key
-    from prtbench.neural_wavelet.data import LATE_KNOB_DEFAULTS, dataset_key, training_views
-    from prtbench.neural_wavelet.train import training_key
+    from methods.neural_wavelet.data import LATE_KNOB_DEFAULTS, dataset_key, training_views
+    from methods.neural_wavelet.train import training_key
+    from prtbench.api.method import artifact_key
 
     cls = METHODS.get("neural-wavelet")
     scene = _scene()
@@ -303,7 +302,7 @@ def test_relative_loss_fits_the_mean_of_noisy_targets_where_mulaw_fits_below_it(
     """Monte Carlo pixel noise is heavy-tailed. The minimiser of the relative L2 (weight held
     constant) is the mean of the samples; the μ-law loss, a near-logarithm inside the square,
     fits close to their geometric mean instead: far below the mean that the image converges to."""
-    from prtbench.neural_wavelet.train import mulaw, relative_l2
+    from methods.neural_wavelet.train import mulaw, relative_l2
 
     g = torch.Generator().manual_seed(0)
     # Log-normal samples, sigma 1.5: median 1, mean exp(1.125) = 3.08 (2.93 for these 4000).
@@ -330,7 +329,7 @@ def test_relative_loss_fits_the_mean_of_noisy_targets_where_mulaw_fits_below_it(
 
 
 def test_light_tilt_tilts_only_later_turns_and_is_seeded():
-    from prtbench.neural_wavelet.data import training_lights
+    from methods.neural_wavelet.data import training_lights
 
     upright = training_lights(("sky",), 3)
     turned = training_lights(("sky",), 3, tilt=30.0, seed=0)
@@ -344,7 +343,7 @@ def test_light_tilt_tilts_only_later_turns_and_is_seeded():
 
 
 def test_random_lights_follow_the_named_ones():
-    from prtbench.neural_wavelet.data import training_lights
+    from methods.neural_wavelet.data import training_lights
 
     lights = training_lights(("sky",), 2, seed=5, random=3)
     assert [lt.name for lt in lights] == ["sky", "sky@180", "random1-5-0", "random1-5-1",
@@ -355,7 +354,7 @@ def test_random_lights_follow_the_named_ones():
 
 
 def test_glossy_comparison_refuses_a_scene_without_glossy_materials():
-    from prtbench.neural_wavelet.evaluate import require_glossy
+    from reproductions.nw_evaluate import require_glossy
 
     require_glossy(_scene("glossy"))
     with pytest.raises(InvalidInputError, match="has no glossy material"):
@@ -415,7 +414,7 @@ def test_hashgrid_beats_vertex_features_and_sh_on_held_out_lights():
     low-frequency, which 5-band SH represents well. The paper's advantage is on sharp glossy
     transport like the gold ring's, which low-order SH blurs.
     """
-    from prtbench.neural_wavelet.evaluate import indirect_metrics, sh_baseline
+    from reproductions.nw_evaluate import indirect_metrics, sh_baseline
 
     cls = METHODS.get("neural-wavelet")
     scene = must_hold_scene()
@@ -459,7 +458,7 @@ def test_hashgrid_beats_vertex_features_and_sh_on_held_out_lights():
 
 
 def test_sh_baseline_indirect_is_the_bounce_light_sloan_matrix_adds():
-    from prtbench.neural_wavelet.evaluate import sh_baseline
+    from reproductions.nw_evaluate import sh_baseline
 
     light = get_light("sky")
     # A lone plane reflects nothing onto itself: its SH indirect is zero to rounding. With a

@@ -1,4 +1,4 @@
-"""prt_shading.glsl against prtbench.sh in float64: zonal Phong coefficients, glossy shading of
+"""prt_shading.glsl against prtbench.transport.sh in float64: zonal Phong coefficients, glossy shading of
 transferred radiance, triple product (sparse Γ) and TPFL, in the vertex and fragment stages."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prtbench import gl, sh
-
-from methods import _triple
+from prtbench.render import gl
+from prtbench.render import prt_shading as _triple
+from prtbench.transport import sh
 
 PROBE_DIR = Path(__file__).parent / "shaders"
 S_VALUES = (0.0, 1.0, 10.0, 100.0, 1000.0, 10000.0)

@@ -9,14 +9,15 @@ import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
 from methods.texture.renderer import TextureRenderer
-from prtbench import imageio, metrics
-from prtbench.errors import InvalidInputError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.raytrace import Tracer
-from prtbench.reference import render_reference
-from prtbench.runner import geometry_mask, run
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.bench import metrics
+from prtbench.bench.runner import geometry_mask, run
+from prtbench.io import imageio
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer
 
 QUICK = {"texture_resolution": 256, "rays_per_point": 256}
 
@@ -122,7 +123,7 @@ def _plants_psnr(method, ground_subdivisions=1, **overrides):
 
 def test_transfer_textures_beat_vertex_tpfl_on_a_two_triangle_ground():
     # PRTT Fig. 4: on the minimal ground, per-vertex transfer cannot hold the leaves' shadows.
-    pytest.importorskip("methods.vertex_glossy")
+    pytest.importorskip("methods.vertex.glossy")
     texture_all, texture_ground = _plants_psnr("texture-tpfl", **QUICK)
     vertex_all, vertex_ground = _plants_psnr("vertex-tpfl", rays_per_point=256)
     # Measured: 25.1 vs 19.5 dB over geometry, 28.5 vs 20.7 dB on the ground.
@@ -135,7 +136,7 @@ def test_vertex_tpfl_on_a_dense_ground_closes_the_gap():
     # PRTT Fig. 4, third row: 512² quads (524k ground triangles) bring vertex-tpfl's ground to
     # the texture's quality; the plants themselves stay per-vertex, so only the ground is
     # compared (measured: 28.7 vs 28.5 dB; over all geometry 22.4 vs 25.1 dB).
-    pytest.importorskip("methods.vertex_glossy")
+    pytest.importorskip("methods.vertex.glossy")
     _, texture_ground = _plants_psnr("texture-tpfl", **QUICK)
     _, vertex_ground = _plants_psnr("vertex-tpfl", ground_subdivisions=512, rays_per_point=256)
     assert vertex_ground >= texture_ground - 2.0, (vertex_ground, texture_ground)
@@ -218,7 +219,7 @@ def test_float16_overflow_of_bounce_textures_is_an_error(tmp_path):
 # --- through the runner -----------------------------------------------------------------------
 
 def test_runner_smoke_profile():
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
 
     request = case_request("texture-tpfl")  # plants glossy under the sun, smoke profile
     summary = run(request, progress=False, echo=False)

@@ -8,15 +8,21 @@ import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
-from methods.texture.atlas import AtlasMesh, render_gbuffer
-from methods.texture.shading import ShadingInputs, apply_normal_map, vertex_tangents
-from methods.texture.texels import (dilate, footprint_texels, layer_count, rgba_layers,
-                                    texel_lookup, to_storage)
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import (Material, Scene, SceneObject, Texture, Trajectory, View, get_scene)
+from methods.common.atlas.atlas import AtlasMesh, render_gbuffer
+from methods.common.atlas.shading import ShadingInputs, apply_normal_map, vertex_tangents
+from methods.common.atlas.texels import (
+    dilate,
+    footprint_texels,
+    layer_count,
+    rgba_layers,
+    texel_lookup,
+    to_storage,
+)
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Material, Scene, SceneObject, Texture, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 
 def _artifact(scene, method="texture-tpfl", **overrides):

@@ -9,19 +9,18 @@ the trivial images.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401  (registers texture-tp, texture-tpfl)
 from methods.texture.compressed import reconstructed_texture
-from prtbench.cache import content_key
-from prtbench.compress import knobs
-from prtbench.config import to_dict
-from prtbench.lights import get_light
-from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
-from prtbench.scene import get_scene
-from .refusal import assert_run_refused  # noqa: E402
+from prtbench.api.cache import content_key
+from prtbench.api.config import to_dict
+from prtbench.api.method import METHODS, Artifact, artifact_key, load_or_precompute
+from prtbench.scene.model import get_scene
+from prtbench.transport.compress import knobs
+from prtbench.transport.lights import get_light
+from tests.methods.refusal import assert_run_refused  # noqa: E402
 
 BASE = {"sh_bands": 3, "rays_per_point": 16, "texture_resolution": 64, "padding": 1}
 
@@ -136,8 +135,8 @@ def test_compressed_ops_count_the_taps_and_the_projection():
 
 
 def test_compressed_smoke_run_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("texture-tpfl:cpca")  # its regression variant, smoke profile
     summary = run(request, progress=False, echo=False)

@@ -5,9 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, TriangleMesh, View, get_scene
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import (
+    Material,
+    Scene,
+    SceneObject,
+    Trajectory,
+    TriangleMesh,
+    View,
+    get_scene,
+)
+from prtbench.transport.lights import get_light
 
 
 def _render(scene, *, light="sky", width=64, height=48, **overrides):
@@ -45,9 +53,10 @@ def test_memory_is_the_transfer_buffer():
 
 
 def _masked_psnr(image, scene, light, width=96, height=72):
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     view = scene.trajectory.views[0]
     ref = render_reference(scene, get_light(light), view, width=width, height=height, spp=256,
@@ -86,8 +95,8 @@ def test_bounces_brighten_a_concave_scene():
 
 
 def test_smoke_run_through_the_runner_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("vertex")  # plants diffuse, 32×32 ground, sun; smoke profile
     summary = run(request, progress=False, echo=False)

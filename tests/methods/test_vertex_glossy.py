@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from numpy.polynomial.legendre import legval
 
-import methods.vertex_glossy as vertex_glossy  # registers the methods
-from methods import _triple
-from prtbench import sh
-from prtbench.errors import InvalidInputError, PrtbenchError
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Texture, Trajectory, View, get_scene
+import methods.vertex.glossy as vertex_glossy  # registers the methods
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.render import prt_shading as _triple
+from prtbench.scene.model import Material, Scene, SceneObject, Texture, Trajectory, View, get_scene
+from prtbench.transport import sh
+from prtbench.transport.lights import get_light
 
 GLOSSY_METHODS = ("vertex-tp", "vertex-tpfl", "sloan-matrix")
 SPHERE_CENTRE, SPHERE_RADIUS = np.array([0.0, 1.0, 0.0]), 0.5
@@ -101,7 +101,7 @@ def test_glossy_furnace_matches_sh_truncated_analytic_value(method):
 
 
 def test_glossy_furnace_against_path_reference():
-    from prtbench.reference import render_reference
+    from prtbench.render.reference import render_reference
 
     kd, ks, s, bands = 0.25, 0.5, 8.0, 8
     scene = _sphere_scene(Material(kd=(kd,) * 3, ks=(ks,) * 3, shininess=s))
@@ -141,7 +141,7 @@ def test_tp_and_tpfl_images_of_one_artifact_agree():
 
 def test_sloan_matrix_first_row_is_the_transfer_vector():
     # Same rays as compute_transfer: Y_0 = 1/√(4π) makes row 0 of M equal T/√(4π).
-    from prtbench.transfer import compute_transfer
+    from prtbench.transport.transfer import compute_transfer
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=4)
     positions, normals, _, _ = scene.merged()
@@ -189,9 +189,10 @@ def test_sloan_matrix_and_tp_agree_on_an_unoccluded_sphere_under_sky():
 # --- convergence towards the path reference ----------------------------------------------------
 
 def _masked_psnr(image, scene, light="sky", width=96, height=72):
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     view = scene.trajectory.views[0]
     ref = render_reference(scene, get_light(light), view, width=width, height=height, spp=256,
@@ -274,8 +275,8 @@ def test_sloan_matrix_over_the_gl_storage_limit_is_refused_before_the_precompute
     """The renderer uploads the matrices as one storage block; matrices over the GL's limit
     (10⁶ triangles at 4 bands on llvmpipe, found only after 45 min of precompute before) are
     refused by validate, and through the CLI with exit 2 and nothing cached or stored."""
-    from prtbench import gl
     from prtbench.cli import main
+    from prtbench.render import gl
 
     scene = _sphere_scene(Material())
     cls = METHODS.get("sloan-matrix")
@@ -317,9 +318,8 @@ def test_unknown_knob_is_rejected():
 
 
 def test_smoke_run_through_the_runner():
-    from prtbench.runner import run
-
-    from prtbench.regress import case_request, gate
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     for name in ("vertex-tp", "sloan-matrix"):  # plants glossy, 32×32 ground, sun; smoke
         request = case_request(name)

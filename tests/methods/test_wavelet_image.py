@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import methods.wavelet_image  # noqa: F401  (registers the method without a reinstall)
+import methods.wavelet.image  # noqa: F401  (registers the method without a reinstall)
+from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.cli import main
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 
 def _renderer(scene, *, width=48, height=36, profile="smoke", **overrides):
@@ -23,9 +23,13 @@ def _renderer(scene, *, width=48, height=36, profile="smoke", **overrides):
 def _direct_integration(scene, light, *, n: int, width: int, height: int) -> np.ndarray:
     """Σ_t L_t V(ω_t) max(n·ω_t, 0) f(ω_t, ωo) Ω_t per pixel, texel by texel: no Haar, no
     sparse storage, the BRDF of DESIGN.md §4 written out."""
-    from methods._gbuffer import pixel_gbuffer
-    from prtbench.raytrace import Tracer, offset_origins
-    from prtbench.wavelet.cubemap import light_cubemap, texel_directions, texel_solid_angles
+    from methods.wavelet.gbuffer import pixel_gbuffer
+    from prtbench.transport.raytrace import Tracer, offset_origins
+    from prtbench.transport.wavelet.cubemap import (
+        light_cubemap,
+        texel_directions,
+        texel_solid_angles,
+    )
 
     g = pixel_gbuffer(scene, scene.trajectory.views[0], width=width, height=height)
     dirs = texel_directions(n).reshape(-1, 3)
@@ -90,8 +94,8 @@ def test_furnace_white_light_closed_convex_diffuse_object_is_albedo():
 
 
 def test_sh_lighting_of_a_constant_light_is_the_light_and_follows_the_bands():
-    from methods.wavelet_image import sh_light_cubemap
-    from prtbench.wavelet.cubemap import light_cubemap, texel_solid_angles
+    from methods.wavelet.image import sh_light_cubemap
+    from prtbench.transport.wavelet.cubemap import light_cubemap, texel_solid_angles
 
     assert np.allclose(sh_light_cubemap(get_light("white"), 8, 1), 1.0, atol=1e-6)
     # More bands approximate the sky better (solid-angle weighted relative L2 error).
@@ -110,7 +114,7 @@ def test_sh_lighting_of_a_constant_light_is_the_light_and_follows_the_bands():
 def test_the_view_is_fixed_and_part_of_the_artifact():
     import dataclasses
 
-    from prtbench.errors import InvalidInputError
+    from prtbench.api.errors import InvalidInputError
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=2).with_views(1)
     renderer, first = _renderer(scene, cubemap=4)
@@ -154,7 +158,7 @@ def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, 
 
 
 def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr("prtbench.config.memory_budget", lambda: 4 << 30)
+    monkeypatch.setattr("prtbench.api.config.memory_budget", lambda: 4 << 30)
     err = _cli_error(tmp_path, monkeypatch, capsys, ["--set", "cubemap=64", "--set", "keep=1.0"])
     # 64×48 pixels × 1 lobe (diffuse scene) × 24 576 coefficients × (2 + 2 + 48) bytes + 512 MiB.
     need = (64 * 48 * 6 * 64**2 * 52 + (512 << 20)) / 2**30
@@ -163,8 +167,8 @@ def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
 
 
 def test_smoke_run_through_the_runner_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("wavelet-image")  # plants diffuse, 32×32 ground, sun; smoke profile
     summary = run(request, progress=False, echo=False)
@@ -182,10 +186,11 @@ def test_converges_to_the_path_reference_well_above_the_trivial_images(variant, 
 
     Measured at 96×72: glossy under sky 35.0 dB against 29.2 unshadowed, 24.5 flat, 16.1 half
     (the soft sky leaves the unshadowed image closer, hence the smaller margin)."""
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
-    from prtbench.trivial import trivial_scores
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.bench.trivial import trivial_scores
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("sphere-over-plane", variant=variant).with_views(1)
     view, lit = scene.trajectory.views[0], get_light(light)

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import methods.wavelet_texture  # noqa: F401  (registers the method without a reinstall)
+import methods.wavelet.texture  # noqa: F401  (registers the method without a reinstall)
+from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.cli import main
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 
 def _renderer(scene, *, method="wavelet-texture", width=64, height=48, **overrides):
@@ -63,8 +63,8 @@ def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, 
 
 
 def test_smoke_run_through_the_runner_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("wavelet-texture")  # plants diffuse under sun, smoke profile
     summary = run(request, progress=False, echo=False)
@@ -80,11 +80,11 @@ def test_sharp_shadows_on_a_two_triangle_ground():
     Measured at 128×96, 256 spp, atlas 128²: wavelet-texture 35.5 dB, wavelet-vertex 21.9 dB,
     texture-tpfl 28.7 dB masked PSNR.
     """
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
-
-    import methods.wavelet_vertex  # noqa: F401
+    import methods.wavelet.vertex  # noqa: F401
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=1).with_views(1)
     view, light = scene.trajectory.views[0], get_light("sun")
@@ -108,8 +108,8 @@ def test_sharp_shadows_on_a_two_triangle_ground():
 
 
 def test_dilation_maps_equal_the_transfer_textures_dilation():
-    from methods.texture.texels import dilate
-    from methods.wavelet_texture import dilation_rings
+    from methods.common.atlas.texels import dilate
+    from methods.wavelet.texture import dilation_rings
 
     rng = np.random.default_rng(1)
     s, r = 2, 40

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import methods.wavelet_tp  # noqa: F401  (registers the method without a reinstall)
+import methods.wavelet.tp  # noqa: F401  (registers the method without a reinstall)
+from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.cli import main
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 
 def _renderer(scene, *, width=64, height=48, profile="quick", **overrides):
@@ -56,8 +56,8 @@ def test_furnace_white_light_gives_albedo_plus_the_lobe_integral():
 
 
 def test_all_terms_equal_the_per_texel_integration_of_l_v_rho():
-    from prtbench.wavelet import brdf, haar
-    from prtbench.wavelet.cubemap import light_cubemap
+    from prtbench.transport.wavelet import brdf, haar
+    from prtbench.transport.wavelet.cubemap import light_cubemap
 
     scene = get_scene("sphere-over-plane", variant="glossy", plane_subdivisions=4)
     n = 8
@@ -93,13 +93,13 @@ def test_all_terms_equal_the_per_texel_integration_of_l_v_rho():
         glossy = scene.objects[1].mesh.n_vertices + scene.objects[0].mesh.n_vertices
         assert renderer.memory_bytes() == (renderer.visibility.nbytes + renderer.diffuse.nbytes
                                            + 12 * len(positions)
-                                           + glossy * m * methods.wavelet_tp.BRDF_ENTRY_BYTES)
+                                           + glossy * m * methods.wavelet.tp.BRDF_ENTRY_BYTES)
         assert artifact.meta["stored_entries"] == renderer.visibility.nnz
     finally:
         renderer.release()
     # Truncated everything (k, V and both BRDF factors): the tree algorithm on the kept terms
     # is still the per-texel product of the truncated signals.
-    from prtbench.wavelet.triple import brute_force
+    from prtbench.transport.wavelet.triple import brute_force
 
     renderer, _ = _renderer(scene, cubemap=n, light_terms=40, keep=30, brdf_keep=50,
                             storage="float32", selection="area")
@@ -161,7 +161,7 @@ def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, 
 
 def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr("prtbench.config.memory_budget", lambda: 4 << 30)
+    monkeypatch.setattr("prtbench.api.config.memory_budget", lambda: 4 << 30)
     status = main(["run", "--method", "wavelet-tp", "--scene", "sphere-over-plane",
                    "--variant", "glossy", "--profile", "smoke", "--set", "cubemap=256",
                    "--set", "keep=1.0", "--out", str(tmp_path / "out"),
@@ -176,8 +176,8 @@ def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
 
 
 def test_textured_materials_are_refused():
-    from prtbench.errors import InvalidInputError
-    from prtbench.scene import Texture
+    from prtbench.api.errors import InvalidInputError
+    from prtbench.scene.model import Texture
 
     scene = _sphere_scene(Material(kd=Texture(np.full((4, 4, 3), 0.5, np.float32)),
                                    ks=(0.2, 0.2, 0.2), shininess=8.0))
@@ -187,8 +187,8 @@ def test_textured_materials_are_refused():
 
 
 def test_smoke_run_through_the_runner_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("wavelet-tp")  # sphere-over-plane glossy, 32×32 ground, sun
     summary = run(request, progress=False, echo=False)
@@ -197,15 +197,16 @@ def test_smoke_run_through_the_runner_beats_the_trivial_images():
 
 
 def _reference(scene, view, light, width, height):
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.render.reference import render_reference
 
     ref = render_reference(scene, light, view, width=width, height=height, spp=256, bounces=0)
     return ref.image, geometry_mask(scene, view, width, height)
 
 
 def _masked_psnr(image, reference, mask, exposure):
-    from prtbench import imageio, metrics
+    from prtbench.bench import metrics
+    from prtbench.io import imageio
 
     return metrics.compute_metrics(imageio.display(image, exposure=exposure),
                                    imageio.display(reference, exposure=exposure),
@@ -222,7 +223,7 @@ def test_converges_towards_the_path_reference_on_the_glossy_scene():
     sloan-matrix 20.4 dB. Per-vertex (Gouraud) shading caps all of it near 32 dB on this mesh:
     6×32×32 with 256 terms measured 30.8 dB, so the gain past N = 16 is not tested here.
     """
-    from prtbench.trivial import trivial_scores
+    from prtbench.bench.trivial import trivial_scores
 
     scene = get_scene("sphere-over-plane", variant="glossy", plane_subdivisions=48).with_views(1)
     view, light = scene.trajectory.views[0], get_light("sun")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import methods.wavelet_vertex  # noqa: F401  (registers the method without a reinstall)
+import methods.wavelet.vertex  # noqa: F401  (registers the method without a reinstall)
+from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.cli import main
-from prtbench.lights import get_light
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, get_scene
+from prtbench.transport.lights import get_light
 
 
 def _renderer(scene, *, width=64, height=48, profile="quick", **overrides):
@@ -45,8 +45,8 @@ def test_furnace_white_light_closed_convex_object_is_albedo():
 
 
 def test_all_terms_give_the_full_cubemap_product_and_bytes_are_the_stored_arrays():
-    from prtbench.wavelet import haar
-    from prtbench.wavelet.cubemap import light_cubemap
+    from prtbench.transport.wavelet import haar
+    from prtbench.transport.wavelet.cubemap import light_cubemap
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=4)
     n = 8
@@ -80,7 +80,7 @@ def test_all_terms_give_the_full_cubemap_product_and_bytes_are_the_stored_arrays
 
 
 def test_selection_follows_the_light():
-    from prtbench.wavelet.cubemap import directions_to_texels
+    from prtbench.transport.wavelet.cubemap import directions_to_texels
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=2)
     renderer, _ = _renderer(scene, cubemap=16, light_terms=16, selection="area")
@@ -94,7 +94,7 @@ def test_selection_follows_the_light():
         renderer.release()
     assert sun_terms != sky_terms
     # The finest wavelets over the sun's texel are among the sun's 16 terms.
-    from prtbench.lights import SUN_DIRECTION
+    from prtbench.transport.lights import SUN_DIRECTION
 
     face, row, col, _, _ = directions_to_texels(SUN_DIRECTION[None], 16)
     finest = {int(face[0]) * 256 + (row[0] // 2) * 16 + 8 + col[0] // 2,  # LH of its 2×2 block
@@ -127,7 +127,7 @@ def test_bad_input_is_one_line_exit_2_and_caches_nothing(tmp_path, monkeypatch, 
 
 def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr("prtbench.config.memory_budget", lambda: 4 << 30)
+    monkeypatch.setattr("prtbench.api.config.memory_budget", lambda: 4 << 30)
     status = main(["run", "--method", "wavelet-vertex", "--scene", "sphere-over-plane",
                    "--profile", "smoke", "--set", "cubemap=256", "--set", "keep=1.0",
                    "--out", str(tmp_path / "out"), "--results", str(tmp_path / "r.sqlite")])
@@ -142,8 +142,8 @@ def test_memory_limit_names_the_bytes(tmp_path, monkeypatch, capsys):
 
 
 def test_smoke_run_through_the_runner_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("wavelet-vertex")  # plants diffuse, 32×32 ground, sun; smoke profile
     summary = run(request, progress=False, echo=False)
@@ -166,9 +166,10 @@ def test_must_hold_k64_beats_eight_band_vertex_prt_on_sharp_sun_shadows():
     Measured at 128×96, 256 spp, plane 96×96: wavelet 35.1 dB / IoU 0.968, vertex 28.7 dB /
     IoU 0.914.
     """
-    from prtbench import imageio, metrics
-    from prtbench.reference import render_reference
-    from prtbench.runner import geometry_mask
+    from prtbench.bench import metrics
+    from prtbench.bench.runner import geometry_mask
+    from prtbench.io import imageio
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("sphere-over-plane", plane_subdivisions=96).with_views(1)
     view, light = scene.trajectory.views[0], get_light("sun")

@@ -15,18 +15,18 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import methods.wavelet_vertex  # noqa: F401  (registers the method without a reinstall)
-from methods.wavelet_compressed import dense_rows, fit_bytes
-from prtbench.cache import content_key
+import methods.wavelet.vertex  # noqa: F401  (registers the method without a reinstall)
+from methods.wavelet.compressed import dense_rows, fit_bytes
+from prtbench.api.cache import content_key
+from prtbench.api.config import to_dict
+from prtbench.api.method import METHODS, Artifact, artifact_key, load_or_precompute
 from prtbench.cli import main
-from prtbench.compress import knobs
-from prtbench.compress.cpca import stored_bytes
-from prtbench.config import to_dict
-from prtbench.lights import get_light
-from prtbench.method import METHODS, Artifact, artifact_key, load_or_precompute
-from prtbench.scene import get_scene
-from prtbench.wavelet.sparse import SparseTransport
-from .refusal import assert_run_refused  # noqa: E402
+from prtbench.scene.model import get_scene
+from prtbench.transport.compress import knobs
+from prtbench.transport.compress.cpca import stored_bytes
+from prtbench.transport.lights import get_light
+from prtbench.transport.wavelet.sparse import SparseTransport
+from tests.methods.refusal import assert_run_refused  # noqa: E402
 
 METHOD = "wavelet-vertex"
 #: d = 6·8² = 384 coefficients per vertex: small enough for full-rank PCA in a test.
@@ -88,7 +88,7 @@ def test_dense_rows_are_the_stored_entries_dequantised():
 
 
 def test_project_terms_is_the_projection_of_the_sparse_operator():
-    from prtbench.compress.fit import fit_cpca
+    from prtbench.transport.compress.fit import fit_cpca
 
     rng = np.random.default_rng(0)
     x = rng.normal(size=(200, 64))
@@ -103,7 +103,7 @@ def test_project_terms_is_the_projection_of_the_sparse_operator():
 
 
 def test_basis_completion_is_orthonormal_and_the_full_factorisation():
-    from prtbench.compress.fit import _complete_basis
+    from prtbench.transport.compress.fit import _complete_basis
 
     rng = np.random.default_rng(1)
     d, keep, valid = 40, 9, 3
@@ -119,7 +119,7 @@ def test_basis_completion_is_orthonormal_and_the_full_factorisation():
 
 
 def test_gram_spectrum_fits_the_svd_subspace_of_wide_clusters():
-    from prtbench.compress.fit import fit_cpca
+    from prtbench.transport.compress.fit import fit_cpca
 
     rng = np.random.default_rng(2)
     # 6 clusters of ~40 wide signals (d = 300), each near a 5-dimensional affine subspace.
@@ -273,7 +273,7 @@ def test_a_fit_over_the_memory_limit_names_the_bytes(tmp_path, monkeypatch, caps
     # Enough for the transport build (its own check: 1990 vertices × 384 kept × 52 B + 512
     # MiB), not for the fit of 64 clusters × 256 vectors of 1536 coefficients.
     budget = 600 << 20
-    monkeypatch.setattr("prtbench.config.memory_budget", lambda: budget)
+    monkeypatch.setattr("prtbench.api.config.memory_budget", lambda: budget)
     status = main(["run", "--method", METHOD, "--scene", "sphere-over-plane", "--profile",
                    "smoke", "--set", "compress=cpca", "--set", "clusters=64", "--set",
                    "pca_vectors=256", "--out", str(tmp_path / "out"),
@@ -306,8 +306,8 @@ def test_stability_derives_the_signal_dimension_from_the_method():
 
 
 def test_compressed_smoke_run_beats_the_trivial_images():
-    from prtbench.regress import case_request, gate
-    from prtbench.runner import run
+    from prtbench.bench.regress import case_request, gate
+    from prtbench.bench.runner import run
 
     request = case_request("wavelet-vertex:cpca")  # plants, 32×32 ground, sun; smoke profile
     summary = run(request, progress=False, echo=False)

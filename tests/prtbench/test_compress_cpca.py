@@ -1,4 +1,4 @@
-"""CPCA (prtbench.compress.cpca): its special cases, monotone error, rendering linearity, bad input."""
+"""CPCA (prtbench.transport.compress.cpca): its special cases, monotone error, rendering linearity, bad input."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from sklearn.cluster import KMeans
 from sklearn.decomposition import PCA
 
-from prtbench.compress import check_request, fit_cpca, stored_bytes
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.compress import check_request, fit_cpca, stored_bytes
 
 
 def _signals(n=600, d=12, clusters=6, rank=3, noise=0.05, seed=1):
@@ -129,7 +129,7 @@ def test_bytes_come_from_the_stored_arrays():
 def test_large_clusters_use_the_streamed_scatter(monkeypatch):
     """Clusters past the direct-SVD size are fitted from their chunked scatter matrix, with the
     same subspace as the SVD path."""
-    from prtbench.compress import fit as cpca
+    from prtbench.transport.compress import fit as cpca
 
     x = _signals(n=800, d=12)
     direct = fit_cpca(x, clusters=3, pca_vectors=4, seed=1)

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench.compress import factor
-from prtbench.compress.factor import HemisphereGrid, factor_brdf, phong_cosine_matrix
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.compress import factor
+from prtbench.transport.compress.factor import HemisphereGrid, factor_brdf, phong_cosine_matrix
 
 KD, KS = (0.35, 0.25, 0.15), (0.45, 0.45, 0.45)
 SMALL = dict(out_grid=HemisphereGrid(3, 12), in_grid=HemisphereGrid(6, 24))
@@ -26,7 +26,7 @@ def test_grid_solid_angles_cover_the_hemisphere_and_centres_are_texel_centres():
 
 
 def test_sampled_matrix_is_the_design_brdf_times_the_cosine():
-    from prtbench.mitsuba_bsdf import brdf
+    from prtbench.render.mitsuba_bsdf import brdf
 
     grid_o, grid_i = HemisphereGrid(2, 8), HemisphereGrid(3, 12)
     rho = phong_cosine_matrix(KD, KS, 20.0, out_grid=grid_o, in_grid=grid_i)
@@ -115,7 +115,7 @@ def test_factors_do_not_depend_on_the_blas_thread_count():
     # within a pair; multi-threaded OpenBLAS picks another rotation than one thread (U and V
     # differ by ~0.1 on this grid), so a 2-worker sweep (one BLAS thread each) and a serial
     # run would store different factors. factor_brdf runs the SVD on one thread.
-    from prtbench.parallel import _openblas_threads
+    from prtbench.transport.parallel import _openblas_threads
 
     threads = _openblas_threads()
     if threads is None:

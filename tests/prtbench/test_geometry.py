@@ -6,12 +6,22 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from prtbench import geometry
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import (boundary_loops, degenerate_faces, fill_holes, grid_plane,
-                               remove_degenerate, remove_duplicate_faces, sample_surface,
-                               scene_atlas, uv_atlas, uv_triangle_areas, weld_vertices)
-from prtbench.scene import Material, Scene, SceneObject, TriangleMesh
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import geometry
+from prtbench.scene.geometry import (
+    boundary_loops,
+    degenerate_faces,
+    fill_holes,
+    grid_plane,
+    remove_degenerate,
+    remove_duplicate_faces,
+    sample_surface,
+    scene_atlas,
+    uv_atlas,
+    uv_triangle_areas,
+    weld_vertices,
+)
+from prtbench.scene.model import Material, Scene, SceneObject, TriangleMesh
 from scenes.primitives import box, uv_sphere
 
 

@@ -1,4 +1,4 @@
-"""prtbench.gl and the shared shader includes (sh.glsl, brdf.glsl) on the headless EGL context.
+"""prtbench.render.gl and the shared shader includes (sh.glsl, brdf.glsl) on the headless EGL context.
 
 Stage files for these tests are written to a temporary directory (``search_path``); they
 include the real ``methods/shaders`` files, which is what is under test.
@@ -13,10 +13,10 @@ import sys
 import numpy as np
 import pytest
 
-from prtbench import gl
-from prtbench.errors import InvalidInputError, PrtbenchError, UnknownNameError
-from prtbench.imageio import linear_to_srgb
-from prtbench.sh import eval_sh, phong_zonal, zonal_convolve
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.io.imageio import linear_to_srgb
+from prtbench.render import gl
+from prtbench.transport.sh import eval_sh, phong_zonal, zonal_convolve
 
 FULLSCREEN_VERT = """#version 330
 // One triangle covering the viewport, no vertex inputs.
@@ -407,9 +407,9 @@ def test_unavailable_gl_names_the_packages(monkeypatch):
 
 
 def test_moderngl_is_imported_on_first_gl_use(monkeypatch):
-    # Importing prtbench.gl (so any method module) must not import moderngl: `prtbench list
+    # Importing prtbench.render.gl (so any method module) must not import moderngl: `prtbench list
     # methods` imports the method modules for their summaries.
-    code = ("import sys, prtbench.gl as gl\n"
+    code = ("import sys, prtbench.render.gl as gl\n"
             "before = 'moderngl' in sys.modules\n"
             "constant = gl.moderngl.TRIANGLES\n"
             "print(before, 'moderngl' in sys.modules, constant)")

@@ -13,12 +13,13 @@ import typing
 import numpy as np
 import pytest
 
-from prtbench import imageio, reference
+from prtbench.api.config import SEED_HIGH
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS
 from prtbench.cli import main
-from prtbench.config import SEED_HIGH
-from prtbench.errors import InvalidInputError
-from prtbench.lights import MAX_RADIANCE
-from prtbench.method import METHODS
+from prtbench.io import imageio
+from prtbench.render import reference
+from prtbench.transport.lights import MAX_RADIANCE
 
 
 def _run_fails(tmp_path, monkeypatch, capfd, argv):
@@ -90,8 +91,8 @@ def test_bad_values_are_one_line_errors(tmp_path, monkeypatch, capfd, argv, frag
 
 def test_extent_bound_sits_at_mitsubas_ray_offset(tmp_path, monkeypatch, capfd):
     """The smallest accepted plane is where 100 offsets fit in its diagonal, no earlier."""
-    from prtbench.scene import get_scene
-    from prtbench.scene_params import MAX_OFFSET_FRACTION, RAY_EPSILON
+    from prtbench.scene.model import get_scene
+    from prtbench.scene.params import MAX_OFFSET_FRACTION, RAY_EPSILON
 
     assert RAY_EPSILON == pytest.approx(8.9407e-5, rel=1e-4)  # mitsuba.math.RayEpsilon, float32
     # A plane of size s has diagonal s·√2 and max|p| = s/2.
@@ -154,8 +155,8 @@ def test_bad_light_file_is_refused_before_anything_is_cached(tmp_path, monkeypat
 
 def test_bright_light_within_bound_renders_a_finite_reference(tmp_path, monkeypatch):
     """At MAX_RADIANCE the reference's float32 sums stay finite (the bound is not too loose)."""
-    from prtbench.lights import EnvironmentLight
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import EnvironmentLight
 
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "cache"))
     scene = get_scene("sphere-over-plane", sphere_segments=16)

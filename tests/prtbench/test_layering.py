@@ -16,12 +16,12 @@ from pathlib import Path
 import pytest
 
 import prtbench
-from prtbench import gl
+from prtbench.render import gl
 
 PLUGINS = ("methods", "scenes", "reproductions")
 CORE = Path(prtbench.__file__).resolve().parent
 ROOT = CORE.parent
-METHOD_SHADERS = ROOT / "methods" / "shaders"
+METHOD_SHADERS = [p for p in (ROOT / "methods").rglob("shaders") if p.is_dir()]
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.MULTILINE)
 #: Includes generated at run time and handed to load_program as virtual files.
 GENERATED = {"scene_sdf.glsl", "learnt_weights.glsl", "learnt_partition_data.glsl"}
@@ -70,8 +70,8 @@ def test_importing_every_core_module_loads_no_plugin():
 
 
 def test_core_shaders_are_package_data_and_resolve_in_the_core():
-    assert gl.shader_dir() == CORE / "shaders"
-    shaders = sorted(p for p in (CORE / "shaders").iterdir() if p.is_file())
+    assert gl.shader_dir() == CORE / "render" / "shaders"
+    shaders = sorted(p for p in (CORE / "render" / "shaders").iterdir() if p.is_file())
     names = {p.name for p in shaders}
     assert {"sh.glsl", "brdf.glsl", "prt_shading.glsl", "sdf_trace.glsl", "sdf_gbuffer.frag",
             "sdf_fullscreen.vert", "sdf_occlusion.frag", "sdf_points.frag"} <= names
@@ -82,14 +82,14 @@ def test_core_shaders_are_package_data_and_resolve_in_the_core():
     for path in shaders:  # a core shader never includes a method's file
         missing = set(_INCLUDE.findall(path.read_text())) - names - GENERATED
         assert not missing, f"{path.name} includes {missing}"
-    assert not names & {p.name for p in METHOD_SHADERS.iterdir()}  # moved, not copied
+    assert not names & {p.name for d in METHOD_SHADERS for p in d.iterdir()}  # moved, not copied
 
 
 def test_method_shader_includes_resolve_in_method_then_core_folders():
-    method_names = {p.name for p in METHOD_SHADERS.iterdir()}
-    core_names = {p.name for p in (CORE / "shaders").iterdir()}
+    method_names = {p.name for d in METHOD_SHADERS for p in d.iterdir()}
+    core_names = {p.name for p in (CORE / "render" / "shaders").iterdir()}
     uses_core = []
-    for path in sorted(METHOD_SHADERS.iterdir()):
+    for path in sorted(p for d in METHOD_SHADERS for p in d.iterdir()):
         includes = set(_INCLUDE.findall(path.read_text()))
         assert not includes - method_names - core_names - GENERATED, path.name
         if includes & core_names:
@@ -106,13 +106,13 @@ def ctx():
 
 
 def test_load_program_finds_core_includes_from_a_method_folder(ctx):
-    import methods
+    from methods.vertex import SHADER_DIR
 
-    # vertex_prt.vert (methods/shaders) includes brdf.glsl, which now lives in the core.
+    # vertex_prt.vert (methods/vertex/shaders) includes brdf.glsl, which lives in the core.
     defines = {"SH_COEFFS": 9, "TRANSFER_CHANNELS": 1}
-    program = gl.load_program(ctx, "vertex_prt.vert", "vertex_prt.frag", defines=defines,
-                              search_path=[methods.SHADER_DIR])
+    program = gl.load_program(ctx, "vertex_prt.vert", "interpolated_radiance.frag", defines=defines,
+                              search_path=[SHADER_DIR])
     assert "light_sh" in program and "clip_from_world" in program
     # Without the method's folder the core does not know the method's stages.
-    with pytest.raises(prtbench.errors.UnknownNameError, match="vertex_prt.vert"):
-        gl.load_program(ctx, "vertex_prt.vert", "vertex_prt.frag", defines=defines)
+    with pytest.raises(prtbench.api.errors.UnknownNameError, match="vertex_prt.vert"):
+        gl.load_program(ctx, "vertex_prt.vert", "interpolated_radiance.frag", defines=defines)

@@ -1,10 +1,10 @@
-"""prtbench.method.wall_frame_times: the host-clock timer the CPU and torch renderers share."""
+"""prtbench.api.method.wall_frame_times: the host-clock timer the CPU and torch renderers share."""
 
 from __future__ import annotations
 
 import pytest
 
-from prtbench import method as method_mod
+from prtbench.api import method as method_mod
 
 
 def test_warmup_is_untimed_and_every_timed_frame_is_one_sample(monkeypatch):

@@ -1,4 +1,4 @@
-"""prtbench.metrics: analytic values, masking, flags and input checks."""
+"""prtbench.bench.metrics: analytic values, masking, flags and input checks."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from prtbench import metrics
-from prtbench.errors import InvalidInputError, UnknownNameError
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.bench import metrics
 
 
 def _image(seed=0, shape=(48, 64), low=0.1, high=0.8) -> np.ndarray:
@@ -51,8 +51,8 @@ def test_known_noise_level_gives_analytic_psnr():
 
 
 def test_full_frame_values_are_the_libraries_values():
-    from skimage.metrics import structural_similarity
     import flip_evaluator
+    from skimage.metrics import structural_similarity
 
     reference = _image(2)
     test = np.clip(reference + np.random.default_rng(3).normal(0, 0.05, reference.shape), 0, 1)

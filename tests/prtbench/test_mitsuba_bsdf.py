@@ -2,7 +2,7 @@
 
 All directions are in the local shading frame (n = +Z). Mitsuba's ``si.wi`` is our ωo (towards
 the viewer) and its ``wo`` is our ωi (towards the light); ``eval`` returns f·cos θ_light.
-The reference values come from NumPy (:func:`prtbench.mitsuba_bsdf.brdf`, float64) and from
+The reference values come from NumPy (:func:`prtbench.render.mitsuba_bsdf.brdf`, float64) and from
 quadratures that never call the plug-in.
 """
 
@@ -18,10 +18,10 @@ import scipy.stats
 mi = pytest.importorskip("mitsuba")
 dr = pytest.importorskip("drjit")
 
-from prtbench import mitsuba_bsdf as mb  # noqa: E402
-from prtbench import reference  # noqa: E402
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.scene import Material, Texture  # noqa: E402
+from prtbench.api.errors import InvalidInputError  # noqa: E402
+from prtbench.render import mitsuba_bsdf as mb  # noqa: E402
+from prtbench.render import reference  # noqa: E402
+from prtbench.scene.model import Material, Texture  # noqa: E402
 
 KD = (0.3, 0.2, 0.1)
 KS = (0.5, 0.6, 0.7)

@@ -1,4 +1,4 @@
-"""prtbench.neural_sdf: exact mesh distances, the sine-MLP node (NumPy ↔ GLSL), fitting."""
+"""prtbench.transport.neural_sdf: exact mesh distances, the sine-MLP node (NumPy ↔ GLSL), fitting."""
 
 from __future__ import annotations
 
@@ -8,10 +8,17 @@ import time
 import numpy as np
 import pytest
 
-from prtbench import sdf
-from prtbench.errors import InvalidInputError
-from prtbench.neural_sdf import (SIZES, FitSettings, MeshDistance, NeuralSdf,
-                                 closest_points_on_triangles, fit_neural_sdf, fit_report)
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport import sdf
+from prtbench.transport.neural_sdf import (
+    SIZES,
+    FitSettings,
+    MeshDistance,
+    NeuralSdf,
+    closest_points_on_triangles,
+    fit_neural_sdf,
+    fit_report,
+)
 
 RNG = np.random.default_rng(77)
 
@@ -138,7 +145,7 @@ def test_fit_a_sphere_quickly_and_cache_it():
     true = np.linalg.norm(p, axis=1) - 0.5
     assert np.all(np.abs(node.evaluate(p)) <= np.abs(true) + 0.01)
     # And a scene SDF built on it traces: a ray down the axis hits the top of the sphere.
-    from prtbench.scene import Material
+    from prtbench.scene.model import Material
 
     surface = sdf.SdfSurface(node, ((-0.8, -0.8, -0.8), (0.8, 0.8, 0.8)), (Material(),))
     hit = sdf.first_hit(surface, np.array([[0.0, 2.0, 0.0]]), np.array([[0.0, -1.0, 0.0]]))
@@ -155,7 +162,7 @@ def test_bunny_fit_error(size):
     (small) / 4.2e-4 (large) of the diagonal; signs right in the band 0.5–2 % of the
     diagonal: 97.8 % / 99.7 %; Lipschitz bounds 2.5 / 3.2.
     """
-    from prtbench.assets import is_fetched
+    from prtbench.io.assets import is_fetched
 
     if not is_fetched("cgal-meshes"):
         pytest.skip("cgal-meshes asset not fetched")

@@ -7,8 +7,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.neural_wavelet.hashgrid import PRIMES, HashGrid, check_table  # noqa: E402
+from methods.neural_wavelet.hashgrid import PRIMES, HashGrid, check_table  # noqa: E402
+from prtbench.api.errors import InvalidInputError  # noqa: E402
 
 BOUNDS = ((-1.0, 0.0, -2.0), (1.0, 2.0, 2.0))
 

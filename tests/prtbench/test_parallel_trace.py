@@ -13,12 +13,15 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from prtbench import parallel
-from prtbench.errors import InvalidInputError
-from prtbench.raytrace import Tracer
-from prtbench.scene import get_scene
-from prtbench.transfer import (compute_bounce_transfer, compute_transfer,
-                               compute_transfer_with_stderr)
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import get_scene
+from prtbench.transport import parallel
+from prtbench.transport.raytrace import Tracer
+from prtbench.transport.transfer import (
+    compute_bounce_transfer,
+    compute_transfer,
+    compute_transfer_with_stderr,
+)
 
 THREAD_COUNTS = ("1", "2", "3")
 
@@ -220,7 +223,7 @@ def test_bounce_transfer_is_identical_on_any_thread_count(monkeypatch, scene):
 
 
 def test_probes_are_identical_on_any_thread_count(monkeypatch, scene, tmp_path):
-    from methods.irradiance_volume import probe_grid, probe_visibility
+    from methods.irradiance_volume.method import probe_grid, probe_visibility
 
     _, _, probes = probe_grid(scene, resolution=8, padding=0.05)
     runs = _runs(monkeypatch, scene, lambda tracer: probe_visibility(
@@ -232,7 +235,7 @@ def test_probes_are_identical_on_any_thread_count(monkeypatch, scene, tmp_path):
 
 def test_texture_texels_and_bounces_are_identical_on_any_thread_count(monkeypatch, tmp_path):
     import methods.texture  # noqa: F401 - registers the texture methods
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     scene = get_scene("cornell", variant="diffuse")
     cls = METHODS.get("texture-tpfl")
@@ -281,7 +284,7 @@ def test_data_driven_bake_is_identical_on_any_thread_count(monkeypatch):
 
 
 def test_glossy_transfer_matrices_are_identical_on_any_thread_count(monkeypatch, scene):
-    from methods import vertex_glossy
+    from methods.vertex import glossy as vertex_glossy
 
     positions, normals, _, _ = scene.merged()
     monkeypatch.setattr(vertex_glossy, "_MATRIX_SCRATCH_BYTES", 8 * 64 * 16 * 100)  # 100 points

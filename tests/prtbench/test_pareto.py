@@ -10,14 +10,19 @@ import re
 
 import pytest
 
-from prtbench import config as config_mod
+from prtbench.api import config as config_mod
+from prtbench.api.errors import UnknownNameError
+from prtbench.api.method import METHODS, Method
 from prtbench.cli import main
-from prtbench.errors import UnknownNameError
-from prtbench.method import METHODS, Method
-from prtbench.results import ResultRow, ResultsStore
+from prtbench.store.results import ResultRow, ResultsStore
 from prtbench.tradeoff import cost
-from prtbench.tradeoff.pareto import (collect_points, mark_fronts, noise_ceiling_db, non_dominated,
-                                      pareto)
+from prtbench.tradeoff.pareto import (
+    collect_points,
+    mark_fronts,
+    noise_ceiling_db,
+    non_dominated,
+    pareto,
+)
 
 
 def _config(method: str, **knobs) -> dict:

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from prtbench import imageio
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
+from prtbench.io import imageio
 
 
 def _expected(image: np.ndarray) -> np.ndarray:

@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from prtbench import cache
-from prtbench.method import METHODS, load_or_precompute
-from prtbench.scene import get_scene
+from prtbench.api import cache
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.scene.model import get_scene
 
 
 def _slow(seconds: float):

@@ -1,12 +1,15 @@
-"""Seeded procedural environments (prtbench.random_lights): reproducible and varied."""
+"""Seeded procedural environments (prtbench.transport.random_lights): reproducible and varied."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from prtbench.random_lights import (SOURCE_ELEVATION_DEG, random_environment,
-                                    random_environments)
+from prtbench.transport.random_lights import (
+    SOURCE_ELEVATION_DEG,
+    random_environment,
+    random_environments,
+)
 
 
 def test_an_environment_is_a_pure_function_of_seed_and_index():

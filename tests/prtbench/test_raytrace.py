@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.geometry import grid_plane
-from prtbench.raytrace import Tracer, offset_origins
-from prtbench.scene import Material, Scene, SceneObject, TriangleMesh
-from prtbench.transfer import RayPattern
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Material, Scene, SceneObject, TriangleMesh
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.transfer import RayPattern
 from scenes.primitives import box, merge, uv_sphere
 
 
@@ -223,7 +223,7 @@ def test_offset_scales_with_the_scene_and_ignores_zero_normals():
 
 
 def test_large_batches_are_chunked(monkeypatch):
-    import prtbench.raytrace as raytrace
+    import prtbench.transport.raytrace as raytrace
 
     monkeypatch.setattr(raytrace, "CHUNK_RAYS", 1000)
     mesh = TriangleMesh(np.array([[-1.0, 0, -1], [1, 0, -1], [0, 0, 2]]), np.array([[0, 2, 1]]))

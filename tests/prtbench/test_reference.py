@@ -16,13 +16,21 @@ import scipy.special
 
 mi = pytest.importorskip("mitsuba")
 
-from prtbench import imageio, reference  # noqa: E402
-from prtbench.cache import content_key  # noqa: E402
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.lights import get_light  # noqa: E402
-from prtbench.mitsuba_bsdf import brdf  # noqa: E402
-from prtbench.scene import (Material, Scene, SceneObject, Texture, TriangleMesh,  # noqa: E402
-                            View, get_scene)
+from prtbench.api.cache import content_key  # noqa: E402
+from prtbench.api.errors import InvalidInputError  # noqa: E402
+from prtbench.io import imageio  # noqa: E402
+from prtbench.render import reference
+from prtbench.render.mitsuba_bsdf import brdf  # noqa: E402
+from prtbench.scene.model import (
+    Material,
+    Scene,
+    SceneObject,
+    Texture,
+    TriangleMesh,
+    View,
+    get_scene,
+)
+from prtbench.transport.lights import get_light  # noqa: E402
 from scenes.primitives import uv_sphere  # noqa: E402
 
 FRONT = View(eye=(0.0, 0.0, 3.5), target=(0.0, 0.0, 0.0), fov_y=40.0)
@@ -355,7 +363,7 @@ def test_sun_shadow_agrees_with_our_ray_tracer():
     """Under the ``sun`` light the ground pixels Mitsuba renders dark are exactly those our own
     tracer (View.primary_rays → first_hit → occlusion towards the sun) finds shadowed: this
     ties the envmap mapping and the camera of the reference to prtbench's."""
-    from prtbench.raytrace import Tracer, offset_origins
+    from prtbench.transport.raytrace import Tracer, offset_origins
 
     scene = get_scene("sphere-over-plane")
     light = get_light("sun")

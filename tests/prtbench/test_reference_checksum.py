@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench import imageio, reference
-from prtbench.lights import get_light
-from prtbench.scene import get_scene
+from prtbench.io import imageio
+from prtbench.render import reference
+from prtbench.scene.model import get_scene
+from prtbench.transport.lights import get_light
 
 ARGS = dict(width=12, height=8, spp=8, seed=3)
 

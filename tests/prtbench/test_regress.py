@@ -1,6 +1,6 @@
 """`prtbench regress`: drift, malformed baselines, the fresh cache, and the trivial-image gate.
 
-Most cases replace :func:`prtbench.regress.measure` by a fixed measurement (no rendering); the
+Most cases replace :func:`prtbench.bench.regress.measure` by a fixed measurement (no rendering); the
 mutation tests run the real ``vertex`` regression case with its renderer patched to return a
 flat or a half-bright image, which the gate must reject.
 """
@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prtbench import regress as regress_mod
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS
+from prtbench.bench import regress as regress_mod
+from prtbench.bench.regress import TOLERANCES, Measurement, regress
+from prtbench.bench.trivial import FLIP_MARGIN, PSNR_MARGIN_DB
 from prtbench.cli import main
-from prtbench.errors import InvalidInputError
-from prtbench.method import METHODS
-from prtbench.regress import TOLERANCES, Measurement, regress
-from prtbench.trivial import FLIP_MARGIN, PSNR_MARGIN_DB
 
 CASE = regress_mod.regression_case(METHODS.get("vertex"))
 GOOD = {"psnr_masked": 22.0, "ssim_masked": 0.6, "flip_masked": 0.15, "mae": 0.04}
@@ -175,7 +175,7 @@ def test_a_fresh_temporary_cache_is_used_by_default_and_removed(fake, tmp_path, 
 
 
 def test_fetched_assets_stay_visible_in_the_fresh_cache(tmp_path, monkeypatch):
-    from prtbench.assets import assets_root
+    from prtbench.io.assets import assets_root
 
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "user"))
     monkeypatch.delenv("PRTBENCH_ASSETS", raising=False)
@@ -190,8 +190,8 @@ def test_fetched_assets_stay_visible_in_the_fresh_cache(tmp_path, monkeypatch):
 
 def _patch_render(monkeypatch, transform):
     """Make VertexRenderer.render return ``transform(true image, geometry mask)``."""
-    from methods.vertex import VertexRenderer
-    from prtbench.runner import geometry_mask
+    from methods.vertex.diffuse import VertexRenderer
+    from prtbench.bench.runner import geometry_mask
 
     original = VertexRenderer.render
 
@@ -211,7 +211,7 @@ def _flat(image, mask):
 
 def test_the_real_vertex_case_passes_and_leaves_the_session_cache_alone(capsys, monkeypatch,
                                                                        tmp_path):
-    from prtbench.cache import cache_root
+    from prtbench.api.cache import cache_root
 
     # A cache of this test's own: the run's shared cache changes under other xdist workers.
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "session-cache"))
@@ -247,7 +247,7 @@ def test_a_cache_that_is_a_file_is_refused(fake, tmp_path):
 
 
 def test_case_request_applies_the_case_scene_params_and_overrides():
-    from prtbench.regress import case_request
+    from prtbench.bench.regress import case_request
 
     vertex = case_request("vertex")
     assert vertex.profile == "smoke" and vertex.scene_params == CASE["scene_params"]

@@ -7,10 +7,10 @@ import json
 
 import pytest
 
-from prtbench import regress as regress_mod
+from prtbench.api.errors import UnknownNameError
+from prtbench.bench import regress as regress_mod
+from prtbench.bench.regress import TOLERANCES, Measurement, case_names, case_request, regress
 from prtbench.cli import main
-from prtbench.errors import UnknownNameError
-from prtbench.regress import TOLERANCES, Measurement, case_names, case_request, regress
 
 GOOD = {"psnr_masked": 22.0, "ssim_masked": 0.6, "flip_masked": 0.15, "mae": 0.04}
 TRIVIAL = {"flat": {"psnr_masked": 17.0, "flip_masked": 0.40}}

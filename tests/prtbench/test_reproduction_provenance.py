@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from prtbench.reproduction import BUSY_LOAD_PER_CORE, load_note, provenance_line
+from prtbench.bench.reproduction import BUSY_LOAD_PER_CORE, load_note, provenance_line
 
 
 def _rows(loads, device="AMD EPYC, 2 cores"):

@@ -1,4 +1,4 @@
-"""prtbench.results: round trips, filters, pandas view, concurrency and atomic batches."""
+"""prtbench.store.results: round trips, filters, pandas view, concurrency and atomic batches."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from prtbench import results
-from prtbench.errors import InvalidInputError, UnknownNameError
-from prtbench.results import ResultRow, ResultsStore
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.store import results
+from prtbench.store.results import ResultRow, ResultsStore
 
 
 def _row(**overrides) -> ResultRow:

@@ -16,12 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prtbench import outputs, strict_json
-from prtbench.cache import cached_arrays
-from prtbench.errors import InvalidInputError, PrtbenchError, UnknownNameError
-from prtbench.method import METHODS, Artifact, load_or_precompute
-from prtbench.results import COLUMNS, SCHEMA_VERSION, ResultRow, ResultsStore, load
-from prtbench.runner import RunRequest, degenerate_reason, execute, geometry_mask, prepare
+from prtbench.api import strict_json
+from prtbench.api.cache import cached_arrays
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.api.method import METHODS, Artifact, load_or_precompute
+from prtbench.bench import outputs
+from prtbench.bench.runner import RunRequest, degenerate_reason, execute, geometry_mask, prepare
+from prtbench.store.results import COLUMNS, SCHEMA_VERSION, ResultRow, ResultsStore, load
 
 
 def _no_constant(name: str):
@@ -440,7 +441,7 @@ def test_schema_4_store_gains_the_load_average_on_append(tmp_path):
 
 
 def test_load_average_is_the_os_one_minute_figure_or_unknown(monkeypatch):
-    from prtbench.runner import load_average
+    from prtbench.bench.runner import load_average
 
     monkeypatch.setattr(os, "getloadavg", lambda: (3.5, 2.0, 1.0))
     assert load_average() == 3.5

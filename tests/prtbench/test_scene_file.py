@@ -12,10 +12,10 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 from PIL import Image  # noqa: E402
 
+from prtbench.api.errors import InvalidInputError  # noqa: E402
 from prtbench.cli import main  # noqa: E402
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.scene import SCENES, Texture, get_scene  # noqa: E402
-from prtbench.scenefile import phong_exponent, read_scene_file  # noqa: E402
+from prtbench.scene.files import phong_exponent, read_scene_file  # noqa: E402
+from prtbench.scene.model import SCENES, Texture, get_scene  # noqa: E402
 
 # Two unit cubes, one per material; face 13 repeats an index (degenerate), face 14 repeats
 # face 1 (duplicate).
@@ -44,6 +44,12 @@ def _write_obj(folder: Path, *, extra: str = "") -> Path:
     path = folder / "parts.obj"
     path.write_text(text)
     return path
+
+
+def _own_cache(monkeypatch, tmp_path) -> None:
+    """A cache of the test's own: it checks the cache is untouched, and under pytest-xdist the
+    run's shared cache changes under the other worker."""
+    monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "own-cache"))
 
 
 def _cache_files() -> set[str]:
@@ -343,7 +349,8 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
     ]
 
 
-def test_bad_inputs_are_one_line_errors_naming_the_file_and_cache_nothing(tmp_path):
+def test_bad_inputs_are_one_line_errors_naming_the_file_and_cache_nothing(tmp_path, monkeypatch):
+    _own_cache(monkeypatch, tmp_path)
     for path, params, fragment in _bad_inputs(tmp_path):
         before = _cache_files()
         with pytest.raises(InvalidInputError) as err:
@@ -425,8 +432,8 @@ def test_vertex_prt_on_a_gltf_file_beats_the_trivial_images(tmp_path):
     # measured; the gate is the flat, half-bright and unshadowed images of the same reference.
     import sqlite3
 
-    from prtbench.regress import gate
-    from prtbench.runner import RunRequest, run
+    from prtbench.bench.regress import gate
+    from prtbench.bench.runner import RunRequest, run
 
     path = _sphere_over_ground(tmp_path / "ball.glb")
     results = tmp_path / "results.sqlite"
@@ -471,7 +478,7 @@ def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tm
     # geometry pixels, normals and materials (kd up to glTF's 8-bit colour factors).
     from dataclasses import replace
 
-    from prtbench.runner import geometry_mask
+    from prtbench.bench.runner import geometry_mask
 
     builtin = get_scene("plants")
     t = np.array([10.0, -2.0, 3.5])
@@ -507,11 +514,13 @@ def test_scene_params_reach_file_scenes_from_run_and_reference(tmp_path, capsys)
         assert err.startswith("prtbench: error: ") and "up='x'; accepted: y, z" in err, err
 
 
-def test_file_scene_over_sloan_matrix_limit_is_refused_naming_the_limit(tmp_path, capsys):
+def test_file_scene_over_sloan_matrix_limit_is_refused_naming_the_limit(tmp_path, capsys,
+                                                                        monkeypatch):
     # Icosphere subdivision 7: 163842 vertices; at sh_bands=8 a vertex's matrix is 8⁴ floats,
     # so 2 GiB (the default max_bytes) holds 131072 vertices: the file is over the limit.
     path = tmp_path / "big.ply"
     trimesh.creation.icosphere(subdivisions=7).export(str(path))
+    _own_cache(monkeypatch, tmp_path)
     before = _cache_files()
     argv = ["run", "--method", "sloan-matrix", "--scene", str(path), "--set", "sh_bands=8",
             "--profile", "smoke", "--results", str(tmp_path / "r.sqlite"),
@@ -534,8 +543,8 @@ def _builtin_and_imported_psnr(method: str, name: str, path: Path, *, builtin, l
     noise)."""
     import copy
 
-    from prtbench.regress import gate
-    from prtbench.runner import RunRequest, execute, prepare
+    from prtbench.bench.regress import gate
+    from prtbench.bench.runner import RunRequest, execute, prepare
 
     psnr = []
     for scene in (name, str(path)):
@@ -581,12 +590,13 @@ def test_plants_exported_to_glb_measures_as_the_builtin_plants(tmp_path, method)
 def test_file_scene_over_the_memory_triangle_limit_is_refused(tmp_path, monkeypatch, capsys):
     # The machine's memory stands in as 1000 triangles' worth (512 B each through a run): the
     # 1280-triangle icosphere is refused naming its count and the limit; 320 are accepted.
-    import prtbench.config as config
-    from prtbench.scene_params import BYTES_PER_TRIANGLE
+    import prtbench.api.config as config
+    from prtbench.scene.params import BYTES_PER_TRIANGLE
 
     monkeypatch.setattr(config, "memory_budget", lambda: 1000 * BYTES_PER_TRIANGLE)
     path = tmp_path / "ball.stl"
     trimesh.creation.icosphere(subdivisions=3).export(str(path))
+    _own_cache(monkeypatch, tmp_path)
     before = _cache_files()
     assert main(["run", "--method", "vertex", "--scene", str(path), "--profile", "smoke",
                  "--results", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "out")]) == 2

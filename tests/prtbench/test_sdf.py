@@ -1,4 +1,4 @@
-"""prtbench.sdf: exact primitives, smooth Booleans, NumPy ↔ GLSL agreement, sphere tracing,
+"""prtbench.transport.sdf: exact primitives, smooth Booleans, NumPy ↔ GLSL agreement, sphere tracing,
 SDF transfer (analytic occlusion and embree on the marching-cubes mesh), marching cubes,
 surface samples and the sphere-traced G-buffer."""
 
@@ -10,9 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from prtbench import sdf
-from prtbench.errors import InvalidInputError
-from prtbench.scene import Material, View
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import Material, View
+from prtbench.transport import sdf
 
 RNG = np.random.default_rng(1234)
 
@@ -213,7 +213,7 @@ def test_spec_describes_the_tree():
     a = every_node()
     spec = a.spec()
     assert spec["type"] == "SmoothUnion" and len(spec["children"]) == 2
-    from prtbench.cache import content_key
+    from prtbench.api.cache import content_key
 
     assert content_key(a.spec()) == content_key(every_node().spec())
     other = sdf.union(sdf.Plane(material=0), sdf.Sphere(0.31, material=1))
@@ -244,7 +244,7 @@ def test_glsl_sources_define_the_trace_api():
                    "float scene_sdf_material(vec3 p, out int material)", "#define SDF_BOUNDS_LO",
                    '#include "sdf_primitives.glsl"'):
         assert needle in text
-    from prtbench.gl import shader_dir
+    from prtbench.render.gl import shader_dir
 
     trace = (shader_dir() / "sdf_trace.glsl").read_text()
     assert "bool trace(vec3 ro, vec3 rd, out vec3 p, out vec3 n, out int material)" in trace
@@ -252,7 +252,7 @@ def test_glsl_sources_define_the_trace_api():
 
 
 def test_load_program_rejects_bad_virtual_names():
-    from prtbench import gl
+    from prtbench.render import gl
 
     with pytest.raises(InvalidInputError, match="plain file name"):
         gl.load_program(gl.create_context(), "sdf_fullscreen.vert", "sdf_gbuffer.frag",
@@ -325,9 +325,9 @@ def test_transfer_under_a_sphere_over_a_plane_is_analytic():
 def test_sdf_transfer_uses_the_mesh_estimator_exactly_when_nothing_occludes():
     """On an unoccluded plane the SDF transfer equals compute_transfer's bit for bit (same rays,
     patterns and rotations), for any band count."""
-    from prtbench.geometry import grid_plane
-    from prtbench.scene import Scene, SceneObject
-    from prtbench.transfer import compute_transfer
+    from prtbench.scene.geometry import grid_plane
+    from prtbench.scene.model import Scene, SceneObject
+    from prtbench.transport.transfer import compute_transfer
 
     surface = _surface(sdf.Plane(material=0), ((-2, -0.1, -2), (2, 1, 2)))
     scene = Scene("plane-test", [SceneObject("ground", grid_plane(4.0), Material())])
@@ -341,7 +341,7 @@ def test_sdf_transfer_uses_the_mesh_estimator_exactly_when_nothing_occludes():
 
 
 def _blob_scene(resolution: int):
-    from prtbench.scene import Scene
+    from prtbench.scene.model import Scene
 
     root = sdf.union(
         sdf.Plane(material=0),
@@ -365,7 +365,7 @@ def test_sdf_transfer_agrees_with_embree_on_the_marching_cubes_mesh():
     99th percentile 0.010, mean ΔT_0 +0.0008, RMS over all coefficients 0.015 (a few crease
     points, max |ΔT_0| 0.57); a systematic tracer bias would show in the mean of ΔT_0.
     """
-    from prtbench.transfer import compute_transfer
+    from prtbench.transport.transfer import compute_transfer
 
     scene = _blob_scene(192)
     points, normals = sdf.sample_sdf_surface(scene, 1500, seed=4)
@@ -458,7 +458,7 @@ def test_split_by_material_indexes_objects_by_id():
 # --- G-buffer -----------------------------------------------------------------------------------
 
 def test_gl_gbuffer_matches_numpy_sphere_tracing_of_view_primary_rays():
-    from prtbench import gl
+    from prtbench.render import gl
 
     scene = _blob_scene(64)
     view = View(eye=(2.2, 1.6, 2.8), target=(0.0, 0.4, 0.0), fov_y=40.0)
@@ -500,7 +500,7 @@ void main() {
 
 
 def test_a_custom_shader_includes_the_trace_api_and_a_pass_is_reusable(tmp_path):
-    from prtbench import gl
+    from prtbench.render import gl
 
     (tmp_path / "custom_sdf.frag").write_text(CUSTOM_FRAG)
     ctx = gl.create_context()

@@ -9,8 +9,8 @@ import pytest
 import scipy.integrate
 import scipy.special
 
-from prtbench import sh
-from prtbench.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport import sh
 
 
 def _random_dirs(n: int, seed: int = 0) -> np.ndarray:

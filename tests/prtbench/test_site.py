@@ -13,14 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prtbench.bench.reproduction import TABLES, run_table
 from prtbench.cli import main
-from prtbench.reference import select_variant
-from prtbench.reproduction import TABLES, run_table
-from prtbench.results import ResultsStore
+from prtbench.render.reference import select_variant
 from prtbench.site.build import MARKER, build, fmt
+from prtbench.store.results import ResultsStore
 from prtbench.tradeoff.pareto import collect_points, noise_ceiling_db
-
-from .site_store import CELLS, STABILITY_ROWS, add_stability, make_store
+from tests.prtbench.site_store import CELLS, STABILITY_ROWS, add_stability, make_store
 
 _VOID = {"img", "input", "br", "meta", "link", "hr", "source", "wbr"}
 
@@ -228,7 +227,8 @@ def test_links_and_images_resolve_inside_the_site_and_the_index_is_small(site):
 
 
 def test_images_are_the_display_images_and_are_made_once(store, site, tmp_path):
-    from prtbench import imageio, renders
+    from prtbench.io import imageio
+    from prtbench.render import renders
 
     rows = [r for r in ResultsStore(store, readonly=True).query() if r.method == "vertex"]
     data = json.loads(_script(site / "scene-plants-sky-smoke.html", "compare-data"))
@@ -309,7 +309,7 @@ def test_out_that_is_not_a_site_is_refused(store, tmp_path, capsys):
 
 
 def test_render_cache_entries_are_checked(tmp_path, monkeypatch):
-    from prtbench import renders
+    from prtbench.render import renders
 
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path))
     image = np.linspace(0.0, 4.0, 48 * 64 * 3, dtype=np.float32).reshape(48, 64, 3)
@@ -324,7 +324,7 @@ def test_render_cache_entries_are_checked(tmp_path, monkeypatch):
     assert renders.store("run1", 1, image * np.nan, exposure=1.0) is None
     assert sorted(p.name for p in path.parent.iterdir()) == ["view00-reference.exr", "view00.exr"]
     # An edited entry (here: its pixels) is not shown, never trusted.
-    from prtbench.imageio import read_exr_metadata, write_exr
+    from prtbench.io.imageio import read_exr_metadata, write_exr
 
     write_exr(path, image * 2.0, metadata=read_exr_metadata(path), half=True)
     assert renders.load("run1", 0) is None

@@ -20,12 +20,11 @@ from urllib.parse import unquote, urlparse
 import numpy as np
 import pytest
 
-from prtbench.results import ResultsStore
 from prtbench.site.build import MARKER, build
 from prtbench.site.data import slug
-
-from . import chromium
-from .site_store import add_stability, make_store
+from prtbench.store.results import ResultsStore
+from tests.prtbench import chromium
+from tests.prtbench.site_store import add_stability, make_store
 
 pytestmark = [pytest.mark.browser,
               pytest.mark.skipif(chromium.executable() is None,

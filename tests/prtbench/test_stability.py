@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from prtbench.config import knob
-from prtbench.errors import InvalidInputError
+from prtbench.api.config import knob
+from prtbench.api.errors import InvalidInputError
 from prtbench.stability import cases as cases_mod
 from prtbench.stability.cases import Case, knob_cases
 from prtbench.stability.outcome import FLIP_MARGIN, PSNR_MARGIN_DB, classify
@@ -123,7 +123,7 @@ def test_cases_come_from_the_config_fields_and_their_declared_bounds():
 def test_a_knob_that_needs_another_knob_gets_it_in_its_cases():
     # wavelet-image reads sh_bands only with lighting='sh': its band cases must set it, or
     # they would render the moderate (wavelet-lit) picture again and be called ok.
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     image = {c.name: c for c in knob_cases(METHODS.get("wavelet-image"), profile="quick")}
     bands = [c for c in image.values() if "sh_bands" in c.overrides]
@@ -135,7 +135,7 @@ def test_a_knob_that_needs_another_knob_gets_it_in_its_cases():
 
 
 def test_every_registered_method_gets_the_shared_cases():
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     for name in ("vertex", "texture-tpfl"):
         cases = cases_mod.method_cases(METHODS.get(name), profile="quick")
@@ -153,7 +153,7 @@ def test_every_registered_method_gets_the_shared_cases():
 def test_every_case_of_every_method_says_what_to_do_instead():
     # The report prints a case's advice for each degraded row: a case without one would leave
     # the user with "None".
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     for name in METHODS.names():
         cases = cases_mod.method_cases(METHODS.get(name), profile="quick")
@@ -164,7 +164,7 @@ def test_every_case_of_every_method_says_what_to_do_instead():
 def test_shininess_advice_names_the_methods_own_basis():
     # An SH method's lobe is cut by its bands; a wavelet method's by its cubemap and the terms it
     # keeps: advising "<= 8 SH bands" to a method without SH bands would name the wrong cause.
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     def advice(name):
         return {c.advice for c in cases_mod.method_cases(METHODS.get(name), profile="quick")
@@ -182,7 +182,7 @@ def test_light_advice_names_the_methods_own_basis():
     # A 0.1-degree sun rings in SH bands; a wavelet method spreads it over one cubemap texel, or
     # over the triangles between its vertices; a learnt one is only fitted under its training
     # lights.
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     def advice(name):
         return {c.name: c.advice for c in cases_mod.method_cases(METHODS.get(name),
@@ -233,7 +233,7 @@ def test_extreme_lights_deliver_what_they_claim():
 # --- case scenes -------------------------------------------------------------------------------
 
 def _base():
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
 
     return get_scene("sphere-over-plane", variant="glossy", sphere_segments=16).with_views(1)
 
@@ -341,9 +341,9 @@ def test_command_errors_are_one_line_exit_2_before_any_work(tmp_path, capsys, ar
 
 
 def test_from_store_merges_the_newest_row_of_each_case_and_marks_partial_runs(tmp_path):
-    from prtbench import measurements
-    from prtbench.errors import PrtbenchError
+    from prtbench.api.errors import PrtbenchError
     from prtbench.stability.matrix import TABLE, stored_rows
+    from prtbench.store import measurements
 
     store = tmp_path / "r.sqlite"
 
@@ -413,10 +413,10 @@ def test_core_case_names_are_the_rows_core_rows_measures():
 
 
 def test_from_store_report_names_every_registered_method_without_rows(tmp_path, capsys):
-    from prtbench import measurements
+    from prtbench.api.method import METHODS
     from prtbench.cli import main
-    from prtbench.method import METHODS
     from prtbench.stability.matrix import TABLE
+    from prtbench.store import measurements
 
     store, reports = tmp_path / "r.sqlite", tmp_path / "reports"
     run_id = measurements.new_run_id()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench.method import METHODS
+from prtbench.api.method import METHODS
 from prtbench.stability import edges
 from prtbench.stability.cases import Case, method_cases
 
@@ -29,7 +29,7 @@ def test_per_vertex_methods_get_the_large_mesh_at_its_real_size_in_quick():
 
 
 def test_the_sphere_triangle_formula_is_the_builders():
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
 
     scene = get_scene("sphere-over-plane", sphere_segments=40, plane_size=4.0)
     sphere = next(o for o in scene.objects if o.name != "ground")
@@ -72,7 +72,7 @@ def test_probe_and_sdf_edges_go_to_the_methods_they_concern():
 def test_solid_block_is_a_closed_box_on_the_ground_holding_probes():
     import trimesh
 
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
     from prtbench.stability.scenes import case_scene
 
     base = get_scene("sphere-over-plane", sphere_segments=16, plane_size=4.0).with_views(1)
@@ -91,10 +91,10 @@ def test_solid_block_is_a_closed_box_on_the_ground_holding_probes():
 
 
 def test_distance_scale_keeps_the_surface_and_divides_the_gradient_in_numpy_and_glsl():
-    from prtbench import sdf
-    from prtbench.scene import Material, Scene, SceneObject, get_scene
-    from prtbench.sdf.gbuffer import evaluate_gl
+    from prtbench.scene.model import Material, Scene, SceneObject, get_scene
     from prtbench.stability.scenes import case_scene
+    from prtbench.transport import sdf
+    from prtbench.transport.sdf.gbuffer import evaluate_gl
 
     surface = sdf.SdfSurface(sdf.Sphere(0.5, material=0).translate(0.0, 1.0, 0.0),
                              ((-1.0, 0.0, -1.0), (1.0, 2.0, 1.0)), (Material(name="m0"),))
@@ -118,7 +118,7 @@ def test_distance_scale_keeps_the_surface_and_divides_the_gradient_in_numpy_and_
 
 
 def test_derived_knobs_are_the_vertex_count_and_the_transfer_dimension(tmp_path):
-    from prtbench.runner import prepare
+    from prtbench.bench.runner import prepare
     from prtbench.stability.cases import base_case
     from prtbench.stability.run import _request, derive_overrides
     from prtbench.stability.scenes import case_scene

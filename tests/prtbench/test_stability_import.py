@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from prtbench.api.errors import InvalidInputError
 from prtbench.cli import main
-from prtbench.errors import InvalidInputError
 from prtbench.stability.importing import FLAG_COLUMNS, TEXT_COLUMNS, import_csv
 from prtbench.stability.matrix import TABLE, stored_rows
 from prtbench.stability.report import CSV_COLUMNS, format_csv, format_markdown
@@ -69,7 +69,7 @@ def test_rows_round_trip_with_their_own_revision_time_and_kinds(tmp_path):
 
 
 def test_a_later_measurement_of_a_case_wins_whatever_the_import_order(tmp_path):
-    from prtbench import measurements
+    from prtbench.store import measurements
 
     store = tmp_path / "r.sqlite"
     fresh = measurements.new_run_id()
@@ -87,7 +87,7 @@ def test_a_later_measurement_of_a_case_wins_whatever_the_import_order(tmp_path):
 
 
 def test_a_measured_row_wins_a_tie_with_an_imported_one(tmp_path, monkeypatch):
-    from prtbench import measurements
+    from prtbench.store import measurements
 
     store = tmp_path / "r.sqlite"
     monkeypatch.setattr(measurements, "_utc_now", lambda: "2026-01-01T00:00:00+00:00")
@@ -128,7 +128,7 @@ def test_an_import_never_doubles_rows(tmp_path):
 
 
 def test_a_failure_part_way_stores_nothing(tmp_path, monkeypatch):
-    from prtbench import measurements
+    from prtbench.store import measurements
 
     store = tmp_path / "r.sqlite"
     rows = [_row("m", "moderate", "ok", stamp="2026-01-01T00:00:00+00:00"),

@@ -10,8 +10,8 @@ import json
 
 import pytest
 
+from prtbench.api.method import METHODS
 from prtbench.cli import main
-from prtbench.method import METHODS
 from prtbench.stability.cases import method_cases
 
 

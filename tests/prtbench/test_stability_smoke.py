@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from prtbench.method import METHODS
+from prtbench.api.method import METHODS
 from prtbench.stability.matrix import CORE, load_rows, run_matrix
 from prtbench.stability.report import write_reports
 

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prtbench.bench.reproduction import Cell
 from prtbench.cli import main
-from prtbench.reproduction import Cell
 from prtbench.tradeoff import grid
 from prtbench.tradeoff.sweep import retime_serial, run_cells
 
@@ -120,7 +120,7 @@ def test_cli_grid_expands_to_typed_cells():
 
 
 def test_shipped_sweep_files_cover_every_method():
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     every = grid.load_sweep(ROOT / "sweeps" / "plants-all.toml", profile="smoke")
     per_method = Counter(c.method for c in every.cells)
@@ -144,7 +144,7 @@ CELLS = [Cell("vertex", "plants", {"sh_bands": 3}, light="sky", overrides={"sh_b
 
 
 def _by_key(path: Path) -> dict[str, list]:
-    from prtbench.results import ResultsStore
+    from prtbench.store.results import ResultsStore
 
     out: dict[str, list] = {}
     for row in ResultsStore(path).query():
@@ -170,9 +170,9 @@ def test_two_workers_equal_serial_and_resume_skips(tmp_path, monkeypatch):
         assert serial.memory_bytes == dask.memory_bytes
 
     # The artifacts (and so the images) are bit-identical: vertex is deterministic.
-    from prtbench.method import METHODS, load_or_precompute
-    from prtbench.lights import get_light
-    from prtbench.scene import get_scene
+    from prtbench.api.method import METHODS, load_or_precompute
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.lights import get_light
 
     method = METHODS.get("vertex")
     config = method.make_config({"sh_bands": 4}, profile="smoke")
@@ -247,7 +247,7 @@ def test_kill_9_mid_sweep_then_rerun_gives_the_uninterrupted_rows(tmp_path, work
     path = _sweep_file(tmp_path, RESUME)
     killed, clean = tmp_path / "killed.sqlite", tmp_path / "clean.sqlite"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    argv = [sys.executable, "-m", "prtbench.cli", "sweep", str(path), "--workers", str(workers),
+    argv = [sys.executable, "-m", "prtbench", "sweep", str(path), "--workers", str(workers),
             "--quiet"]
     proc = subprocess.Popen([*argv, "--results", str(killed)], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
@@ -299,7 +299,7 @@ def _thread_settings() -> tuple[str, str]:
 def test_worker_threads_fix_every_workers_share_of_the_cores():
     from distributed import Client
 
-    from prtbench.tradeoff.cluster import cores, local_cluster, register_setup
+    from prtbench.bench.cluster import cores, local_cluster, register_setup
 
     # One worker gets every core by default; --worker-threads 1 holds it to one (the
     # configuration that measures Dask's own scaling, benchmarks/bench_sweep.py).

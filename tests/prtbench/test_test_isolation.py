@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from prtbench.cache import cache_root
+from prtbench.api.cache import cache_root
 from tests.conftest import run_root
 
 

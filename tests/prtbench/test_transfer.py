@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
-from prtbench import sh
-from prtbench.errors import InvalidInputError
-from prtbench.raytrace import Tracer
-from prtbench.scene import Material, Scene, SceneObject, Texture, TriangleMesh, get_scene
-from prtbench.transfer import (
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import Material, Scene, SceneObject, Texture, TriangleMesh, get_scene
+from prtbench.transport import sh
+from prtbench.transport.raytrace import Tracer
+from prtbench.transport.transfer import (
     ShRotation,
     compute_bounce_transfer,
     compute_transfer,
@@ -182,7 +182,7 @@ def test_padded_chunks_agree_with_whole_rounds_of_patterns():
     # stacked float32 matmul per chunk and agree to float32 rounding; rays beyond SUM_BLOCK
     # go in blocks (M = 300: two blocks, the second zero-padded), likewise. (Bit for bit on
     # an AVX-512 Xeon; on an AMD EPYC OpenBLAS rounds 1.6 % of them differently, by 7.5e-9.)
-    from prtbench import transfer as tr
+    from prtbench.transport import transfer as tr
 
     scene = get_scene("sphere-over-plane", sphere_segments=16, plane_subdivisions=4)
     positions, normals, _, _ = scene.merged()
@@ -219,7 +219,7 @@ def test_default_chunks_start_short_and_cover_every_point_once():
     # lockstep (they would all reach their numpy SH sums together); a job that fits one chunk
     # stays one chunk (the tracer then splits its rays over the threads). Nothing here
     # depends on the thread count.
-    from prtbench.transfer import LEAD_CHUNK_FRACTION, MAX_RAYS_PER_CHUNK, _chunks
+    from prtbench.transport.transfer import LEAD_CHUNK_FRACTION, MAX_RAYS_PER_CHUNK, _chunks
 
     step = MAX_RAYS_PER_CHUNK // 256
     sizes = [c.stop - c.start for c in _chunks(4 * step, 256, None)]
@@ -237,7 +237,7 @@ def test_default_chunks_start_short_and_cover_every_point_once():
 
 
 def test_blas_thread_count_is_restored_after_the_loop():
-    from prtbench.transfer import _openblas_threads
+    from prtbench.transport.transfer import _openblas_threads
 
     threads = _openblas_threads()
     if threads is None:

@@ -7,10 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.imageio import display
-from prtbench.trivial import (FLIP_MARGIN, PSNR_MARGIN_DB, beats, gate_failures, trivial_images,
-                              trivial_scores)
+from prtbench.api.errors import InvalidInputError
+from prtbench.bench.trivial import (
+    FLIP_MARGIN,
+    PSNR_MARGIN_DB,
+    beats,
+    gate_failures,
+    trivial_images,
+    trivial_scores,
+)
+from prtbench.io.imageio import display
 
 
 def _reference(seed=0):

@@ -7,9 +7,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from prtbench import uv_pack
-from prtbench.errors import InvalidInputError, PrtbenchError
-from prtbench.geometry import grid_plane
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.scene import uv_pack
+from prtbench.scene.geometry import grid_plane
 
 
 def _quad():

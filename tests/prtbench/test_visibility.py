@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from prtbench.method import METHODS, artifact_key
-from prtbench.scene import Material, Scene, SceneObject, TriangleMesh, get_scene
-from prtbench.transfer import compute_transfer
+from prtbench.api.method import METHODS, artifact_key
+from prtbench.scene.model import Material, Scene, SceneObject, TriangleMesh, get_scene
+from prtbench.transport.transfer import compute_transfer
 
 UP = np.array([[0.0, 1.0, 0.0]])
 BELOW = np.zeros((1, 3))  # on the plane, under the sphere's centre
@@ -53,7 +53,7 @@ def test_shadowed_and_unshadowed_transfer_are_cached_apart(tmp_path, monkeypatch
 
 
 def test_sloan_matrices_without_visibility_are_unoccluded():
-    from methods.vertex_glossy import compute_transfer_matrices
+    from methods.vertex.glossy import compute_transfer_matrices
 
     scene = get_scene("sphere-over-plane", radius=0.5, height=1.0)
     m = compute_transfer_matrices(scene, BELOW, UP, bands=2, rays_per_point=512, progress=False,
@@ -111,7 +111,7 @@ def test_learnt_training_data_without_visibility_is_unoccluded():
 
 
 def test_learnt_sdf_training_data_without_visibility_is_unoccluded():
-    from methods.learnt_sdf import surface_transfer
+    from methods.learnt.sdf import surface_transfer
 
     scene = get_scene("sdf-rabbit")
     kw = dict(points=128, rays_per_point=16, bands=2, seed=0, backend="numpy", progress=False)
@@ -122,7 +122,7 @@ def test_learnt_sdf_training_data_without_visibility_is_unoccluded():
 
 
 def test_data_driven_says_why_it_has_no_visibility_knob():
-    from prtbench.trivial import visibility_knob
+    from prtbench.bench.trivial import visibility_knob
 
     reason = visibility_knob(METHODS.get("data-driven"))
     assert reason is not None and "shadow" in reason

@@ -7,10 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.lights import EnvironmentLight, get_light, lat_long_directions
-from prtbench.wavelet import cubemap, haar, selection
-
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.lights import EnvironmentLight, get_light, lat_long_directions
+from prtbench.transport.wavelet import cubemap, haar, selection
 
 # --- cubemap ------------------------------------------------------------------------------------
 

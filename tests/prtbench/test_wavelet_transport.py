@@ -7,11 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.scene import get_scene
-from prtbench.wavelet import cubemap, haar, sparse
-from prtbench.wavelet.sparse import SparseTransport
-from prtbench.wavelet.transport import compute_wavelet_transport, keep_count, row_counts, truncate
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import get_scene
+from prtbench.transport.wavelet import cubemap, haar, sparse
+from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet.transport import (
+    compute_wavelet_transport,
+    keep_count,
+    row_counts,
+    truncate,
+)
 
 
 def _texel_transport(transport: SparseTransport, n: int) -> np.ndarray:

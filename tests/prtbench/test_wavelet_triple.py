@@ -6,10 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError
-from prtbench.wavelet import haar
-from prtbench.wavelet.triple import (SparseRows, brute_force, decode, mean_pyramid,
-                                     parent_means, triple_product, wavelet_index)
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.triple import (
+    SparseRows,
+    brute_force,
+    decode,
+    mean_pyramid,
+    parent_means,
+    triple_product,
+    wavelet_index,
+)
 
 N = 8
 M = 6 * N * N
@@ -128,7 +135,7 @@ def test_bad_shapes_are_one_line_errors():
                        SparseRows.from_dense(np.ones((2, 10))))
 
 
-# --- the cosine-weighted Phong BRDF in Haar (prtbench.wavelet.brdf) ---------------------------
+# --- the cosine-weighted Phong BRDF in Haar (prtbench.transport.wavelet.brdf) ---------------------------
 
 def _unit(rng, count):
     v = rng.normal(size=(count, 3))
@@ -136,7 +143,7 @@ def _unit(rng, count):
 
 
 def test_brdf_factors_integrate_to_their_closed_forms():
-    from prtbench.wavelet import brdf
+    from prtbench.transport.wavelet import brdf
 
     rng = np.random.default_rng(11)
     normals = _unit(rng, 6)
@@ -164,7 +171,7 @@ def test_brdf_factors_integrate_to_their_closed_forms():
 
 
 def test_brdf_projection_keeps_the_largest_coefficients():
-    from prtbench.wavelet import brdf
+    from prtbench.transport.wavelet import brdf
 
     rng = np.random.default_rng(5)
     normals, views = _unit(rng, 20), _unit(rng, 20)
@@ -184,9 +191,9 @@ def test_brdf_projection_keeps_the_largest_coefficients():
 
 
 def test_visibility_only_transport_is_the_visible_fraction():
-    from prtbench.scene import get_scene
-    from prtbench.wavelet.cubemap import texel_solid_angles
-    from prtbench.wavelet.transport import compute_wavelet_transport
+    from prtbench.scene.model import get_scene
+    from prtbench.transport.wavelet.cubemap import texel_solid_angles
+    from prtbench.transport.wavelet.transport import compute_wavelet_transport
 
     scene = get_scene("plane")  # nothing occludes its up-facing points
     points, normals = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.5]]), np.array([[0.0, 1.0, 0.0]] * 2)
@@ -202,8 +209,8 @@ def test_visibility_only_transport_is_the_visible_fraction():
 
 
 def test_brdf_table_looks_up_the_entry_of_the_bins_centres():
-    from prtbench.wavelet import brdf
-    from prtbench.wavelet.cubemap import texel_directions
+    from prtbench.transport.wavelet import brdf
+    from prtbench.transport.wavelet.cubemap import texel_directions
 
     t = 4
     centres = texel_directions(t).reshape(-1, 3)

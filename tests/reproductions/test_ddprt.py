@@ -64,8 +64,8 @@ def test_figure_12_vertex_prt_leaks_behind_the_lion(tmp_path):
 
 def test_table_1_from_the_results_store(tmp_path, monkeypatch):
     import reproductions.table_ddprt_1 as table
-    from prtbench.reproduction import run_table
-    from prtbench.results import load
+    from prtbench.bench.reproduction import run_table
+    from prtbench.store.results import load
 
     monkeypatch.setattr(table, "SCENES", table.SCENES[:1])  # cornell only: seconds, not minutes
     reproduction = table.DdprtTable1()
@@ -92,7 +92,7 @@ def test_table_1_from_the_results_store(tmp_path, monkeypatch):
 @pytest.mark.assets
 def test_table_1_smoke_all_scenes(tmp_path):
     import reproductions.table_ddprt_1 as table
-    from prtbench.reproduction import run_table
+    from prtbench.bench.reproduction import run_table
 
     md, _ = run_table(table.DdprtTable1(), profile="smoke", reports_dir=tmp_path, progress=False)
     text = md.read_text()

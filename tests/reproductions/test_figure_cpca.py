@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from prtbench.compress import stored_bytes
+from prtbench.transport.compress import stored_bytes
 from reproductions import figure_cpca as fc
 
 
@@ -28,8 +28,8 @@ def test_forms_store_at_most_the_budget_and_one_more_vector_or_cluster_exceeds_i
 
 
 def test_quick_cells_are_the_table_cases_at_equal_memory():
-    import methods.vertex_glossy  # noqa: F401
-    from prtbench.assets import AssetMissingError
+    import methods.vertex.glossy  # noqa: F401
+    from prtbench.io.assets import AssetMissingError
 
     try:
         cells = fc.FIGURE.cells("quick")
@@ -41,8 +41,8 @@ def test_quick_cells_are_the_table_cases_at_equal_memory():
 
 
 def test_figure_writes_panels_and_caption_from_stored_rows(tmp_path, monkeypatch):
-    from prtbench import imageio
-    from prtbench.results import load
+    from prtbench.io import imageio
+    from prtbench.store.results import load
 
     monkeypatch.setattr(fc, "SMOKE_CASES", fc.SMOKE_CASES[:1])  # plants diffuse vertex only
     results = tmp_path / "results.sqlite"
@@ -50,8 +50,8 @@ def test_figure_writes_panels_and_caption_from_stored_rows(tmp_path, monkeypatch
                              progress=False)
     image = imageio.read_png(png)
     assert image.shape[0] > 2 * 48 and image.shape[1] > 5 * 64  # 2 rows × 5 columns of panels
-    from prtbench import measurements
-    from prtbench.reproduction import Stored
+    from prtbench.bench.reproduction import Stored
+    from prtbench.store import measurements
 
     report = Stored(measurements.require_report("figure", fc.FIGURE.name, profile="smoke",
                                                 results_path=results))

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prtbench import imageio
+from prtbench.io import imageio
 
 
 def test_wavelets_approximate_a_sun_far_better_than_sh_at_equal_terms():
     """Slide 32's point, measured: for a small bright source, k wavelet terms leave much less
     lighting error than k SH terms, and both errors fall as terms are added."""
-    from prtbench.lights import get_light
+    from prtbench.transport.lights import get_light
     from reproductions.figure_lecture_33 import lighting_errors
 
     rows = lighting_errors(get_light("sun"), 16, max_bands=10, terms=(4, 25, 100, 400, 1536))
@@ -51,7 +51,7 @@ def test_figure_writes_panels_curve_and_tables_from_the_store(tmp_path):
 
 
 def _stored_panels(results):
-    from prtbench import measurements
+    from prtbench.store import measurements
     from reproductions.figure_lecture_33 import TABLE
 
     return measurements.load(TABLE, results_path=results)

@@ -7,8 +7,8 @@ import sqlite3
 
 import pytest
 
-from prtbench import measurements
-from prtbench.errors import InvalidInputError, PrtbenchError
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.store import measurements
 
 
 def _no_bare_constants(text: str):
@@ -114,7 +114,7 @@ def test_unknown_profile_is_refused_before_any_work(tmp_path, capsys):
 
 def test_figure_rebuilt_from_the_store_is_byte_identical(tmp_path, capsys):
     from prtbench.cli import main
-    from prtbench.results import git_sha
+    from prtbench.store.results import git_sha
 
     results = tmp_path / "results.sqlite"
     first, second = tmp_path / "measured", tmp_path / "rebuilt"
@@ -145,8 +145,8 @@ def test_figure_rebuilt_from_the_store_is_byte_identical(tmp_path, capsys):
 def test_table_rebuilt_from_the_store_is_byte_identical_with_its_leak_column(tmp_path):
     import csv
 
-    import methods.irradiance_volume  # noqa: F401 - registers the method
-    from prtbench.reproduction import run_table
+    import methods.irradiance_volume.method  # noqa: F401 - registers the method
+    from prtbench.bench.reproduction import run_table
     from reproductions import table_volume as tv
 
     class Tiny(tv.VolumeTable):

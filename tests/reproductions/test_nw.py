@@ -16,8 +16,8 @@ import pytest
 
 pytest.importorskip("torch")
 
-from prtbench.errors import InvalidInputError  # noqa: E402
-from prtbench.reproduction import run_table  # noqa: E402
+from prtbench.api.errors import InvalidInputError  # noqa: E402
+from prtbench.bench.reproduction import run_table  # noqa: E402
 from reproductions import table_nw_common as nw  # noqa: E402
 
 
@@ -28,7 +28,7 @@ def _csv(path):
 
 
 def _stored(store, run_prefix):
-    from prtbench.results import load
+    from prtbench.store.results import load
 
     frame = load(store)
     return frame[frame["run_id"].str.startswith(run_prefix)]
@@ -44,7 +44,7 @@ def store(tmp_path_factory):
 
 
 def test_far_views_are_a_held_out_trajectory():
-    from prtbench.scene import get_scene
+    from prtbench.scene.model import get_scene
 
     scene = get_scene("sphere-over-plane", variant="glossy", sphere_segments=16,
                       plane_subdivisions=4)
@@ -65,7 +65,7 @@ def test_an_sh_baseline_over_the_gl_storage_limit_is_refused_before_training(mon
                                                                           tmp_path):
     """smoke's 3-band RGB matrices on the 16-segment sphere and plane are ~0.1 MiB: a 64 KiB
     limit must refuse them, naming the size and the limit, before anything is trained."""
-    from prtbench import gl
+    from prtbench.render import gl
     from reproductions.table_nw_1 import TABLE
 
     st = nw.setup("smoke")
@@ -182,7 +182,7 @@ def test_gather_directions_pdf_integrates_to_one():
 
 
 def test_figure_nw_6_smoke(store, tmp_path):
-    from prtbench import measurements
+    from prtbench.store import measurements
     from reproductions.figure_nw_6 import FIGURE
 
     paths = FIGURE.make(profile="smoke", reports_dir=tmp_path, results_path=store,

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
-from methods._triple import gamma_entries, tpfl_buffer_data
-from prtbench.errors import AssetMissingError, InvalidInputError
-from prtbench.reproduction import TABLES, run_table
-from prtbench.results import load
-from prtbench.scene import get_scene
+from prtbench.api.errors import AssetMissingError, InvalidInputError
+from prtbench.bench.reproduction import TABLES, run_table
+from prtbench.render.prt_shading import gamma_entries, tpfl_buffer_data
+from prtbench.scene.model import get_scene
+from prtbench.store.results import load
 from reproductions import _panels, _plots
 from reproductions import figure_3_4 as f34
 from reproductions import table_3_1 as t31
@@ -69,7 +69,7 @@ def test_memory_closed_forms_match_the_papers_magnitudes():
 
 
 def test_sloan_refusal_names_the_knob_or_the_gl_limit(monkeypatch):
-    from prtbench.method import METHODS
+    from prtbench.api.method import METHODS
 
     scene = get_scene("plants", variant="glossy")
     sloan = METHODS.get("sloan-matrix")
@@ -195,7 +195,7 @@ def test_missing_assets_fail_before_anything_runs(tmp_path, monkeypatch):
 
 
 def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch):
-    from prtbench import imageio
+    from prtbench.io import imageio
 
     monkeypatch.setitem(f34.SCENES, "smoke", ("plants",))
     monkeypatch.setattr(f34, "COLUMNS", (("vertex TPFL", "vertex-tpfl", False),
@@ -216,7 +216,7 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
 
 
 def test_grid_and_wireframe_overlay_geometry(tmp_path):
-    from prtbench import imageio
+    from prtbench.io import imageio
 
     a = np.full((10, 20, 3), 0.5, np.float32)
     b = np.zeros((10, 20, 3), np.float32)

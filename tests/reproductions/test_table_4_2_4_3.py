@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from prtbench.reproduction import Cell, run_table
+from prtbench.bench.reproduction import Cell, run_table
 from reproductions import table_4_2, table_4_3
 
 
@@ -93,7 +93,7 @@ def test_table_4_3_format_grid_and_size_ratio():
 
 def test_table_4_2_end_to_end_on_a_tiny_sweep(monkeypatch, tmp_path):
     # One smoke-sized cell through the real runner and results store; the rest stay empty.
-    import methods.learnt_sdf  # noqa: F401 - registers "learnt-sdf"
+    import methods.learnt.sdf  # noqa: F401 - registers "learnt-sdf"
 
     cell = Cell(method="learnt-sdf", scene="sdf-rabbit", variant="glossy", views=1,
                 scene_params={"mc_resolution": 96},

@@ -41,7 +41,7 @@ def test_format_shows_refusals_and_paper_rows():
 
 @pytest.mark.slow
 def test_table_runs_end_to_end_in_smoke(monkeypatch, tmp_path):
-    from prtbench.reproduction import run_table
+    from prtbench.bench.reproduction import run_table
 
     monkeypatch.setattr(t44, "WIDTHS", (64,))
     md, csv = run_table(t44.TABLE, profile="smoke", results_path=tmp_path / "r.sqlite",

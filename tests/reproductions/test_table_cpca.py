@@ -29,8 +29,8 @@ def test_cells_are_the_issue_grid_plus_the_uncompressed_rows():
 def test_grid_points_map_to_compress_knobs(k, n, want):
     assert tc.form_overrides(k, n) == want
     # Every mapping is a valid config of both methods.
-    import methods.vertex_glossy  # noqa: F401
-    from prtbench.method import METHODS
+    import methods.vertex.glossy  # noqa: F401
+    from prtbench.api.method import METHODS
 
     for method in ("vertex", "sloan-matrix"):
         METHODS.get(method).make_config(want)
@@ -67,8 +67,8 @@ class _Small(tc.CpcaTable):
 
 
 def test_small_table_from_the_results_store(tmp_path):
-    from prtbench.reproduction import run_table
-    from prtbench.results import load
+    from prtbench.bench.reproduction import run_table
+    from prtbench.store.results import load
 
     results = tmp_path / "results.sqlite"
     md, csv_path = run_table(_Small(), profile="smoke", results_path=results,
@@ -99,7 +99,7 @@ def test_small_table_from_the_results_store(tmp_path):
 
 
 def test_the_optional_wavelet_case_is_added_only_when_asked_and_only_at_quick():
-    from prtbench.errors import UnknownNameError
+    from prtbench.api.errors import UnknownNameError
 
     assert not any(c.method == "wavelet-vertex" for c in tc.TABLE.cells("quick"))
     table = tc.CpcaTable(optional=("plants wavelet",))
@@ -109,8 +109,8 @@ def test_the_optional_wavelet_case_is_added_only_when_asked_and_only_at_quick():
     assert [(c.label["K"], c.label["n"]) for c in wavelet] == [(0, -1), *tc.OPTIONAL_FORMS]
     assert "compress" not in wavelet[0].overrides
     assert {c.overrides["compress"] for c in wavelet[1:]} == {"pca", "cpca", "vq"}
-    import methods.wavelet_vertex  # noqa: F401
-    from prtbench.method import METHODS
+    import methods.wavelet.vertex  # noqa: F401
+    from prtbench.api.method import METHODS
 
     for c in wavelet:  # every row is a valid config
         METHODS.get("wavelet-vertex").make_config(dict(c.overrides))

@@ -7,7 +7,7 @@ import pytest
 
 @pytest.mark.slow
 def test_table_ng03_smoke_has_every_configuration_with_bytes(tmp_path):
-    from prtbench.reproduction import run_table
+    from prtbench.bench.reproduction import run_table
     from reproductions.table_ng03 import CONFIGS, TABLE
 
     md, csv_path = run_table(TABLE, profile="smoke", results_path=tmp_path / "r.sqlite",

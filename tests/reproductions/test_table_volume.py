@@ -6,10 +6,10 @@ import csv
 
 import numpy as np
 
-import methods.irradiance_volume as iv  # registers "irradiance-volume"
-from prtbench.method import METHODS
-from prtbench.raytrace import Tracer
-from prtbench.scene import get_scene
+import methods.irradiance_volume.method as iv  # registers "irradiance-volume"
+from prtbench.api.method import METHODS
+from prtbench.scene.model import get_scene
+from prtbench.transport.raytrace import Tracer
 from reproductions import table_volume as tv
 
 
@@ -58,8 +58,8 @@ class _RoomOnly(tv.VolumeTable):
 
 
 def test_small_table_from_the_results_store(tmp_path):
-    from prtbench.reproduction import run_table
-    from prtbench.results import load
+    from prtbench.bench.reproduction import run_table
+    from prtbench.store.results import load
 
     results = tmp_path / "results.sqlite"
     md, csv_path = run_table(_RoomOnly(), profile="smoke", results_path=results,

@@ -6,9 +6,9 @@ import inspect
 
 import pytest
 
-from prtbench import scene_params as P
-from prtbench.errors import InvalidInputError
-from prtbench.scene import SCENES, get_scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene import params as P
+from prtbench.scene.model import SCENES, get_scene
 
 
 def _builders():
@@ -30,7 +30,7 @@ def test_every_builder_declares_every_parameter_and_its_defaults_pass():
 
 
 def test_neural_bunny_sizes_match_the_network_table():
-    from prtbench.neural_sdf import SIZES
+    from prtbench.transport.neural_sdf import SIZES
 
     spec = SCENES.get("sdf-bunny-neural").scene_params["size"]
     assert set(spec.choices) == set(SIZES)
@@ -82,8 +82,8 @@ def test_lengths_must_be_positive_finite_numbers(value):
 
 def test_extent_refuses_scenes_far_from_the_origin_relative_to_their_size():
     """Mitsuba's offset grows with max|p|: a small scene far away loses its shadows too."""
-    from prtbench.geometry import grid_plane
-    from prtbench.scene import Material, Scene, SceneObject
+    from prtbench.scene.geometry import grid_plane
+    from prtbench.scene.model import Material, Scene, SceneObject
 
     def plane_at(x: float, size: float) -> Scene:
         mesh = grid_plane(size, 1, center=(x, 0.0, 0.0))

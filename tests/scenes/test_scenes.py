@@ -8,9 +8,9 @@ import os
 import numpy as np
 import pytest
 
-from prtbench.errors import InvalidInputError, UnknownNameError
-from prtbench.geometry import boundary_loops, weld_vertices
-from prtbench.scene import get_scene
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.scene.geometry import boundary_loops, weld_vertices
+from prtbench.scene.model import get_scene
 from scenes import primitives
 
 # Triangle-count ranges of the default builds: (low, high) inclusive.
@@ -254,7 +254,7 @@ def _volume(mesh) -> float:
 @pytest.fixture
 def user_assets(monkeypatch):
     """Point the cache at the user's (where `make assets` put the assets)."""
-    from prtbench.assets import is_fetched
+    from prtbench.io.assets import is_fetched
 
     if _USER_CACHE:
         monkeypatch.setenv("PRTBENCH_CACHE", _USER_CACHE)

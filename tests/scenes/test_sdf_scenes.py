@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import scenes.sdf_scenes  # noqa: F401 - registers the scenes until the entry points are added
-from prtbench import sdf
-from prtbench.errors import InvalidInputError
-from prtbench.scene import get_scene
+from prtbench.api.errors import InvalidInputError
+from prtbench.scene.model import get_scene
+from prtbench.transport import sdf
 
 ANALYTIC = {"sdf-car": "OLD-CAR", "sdf-monster": "MIKE-MONSTER", "sdf-fish": "FISH",
             "sdf-rabbit": "RABBIT"}
@@ -113,8 +113,8 @@ def test_sdf_scene_hash_and_resolution_knob():
 def test_mitsuba_reference_renders_the_marching_cubes_mesh():
     """The reference renders the SDF scene's mesh; its coverage matches the SDF G-buffer."""
     pytest.importorskip("mitsuba")
-    from prtbench import gl
-    from prtbench.reference import render_reference
+    from prtbench.render import gl
+    from prtbench.render.reference import render_reference
 
     scene = get_scene("sdf-monster", mc_resolution=RES)
     view = scene.trajectory.views[0]
@@ -132,7 +132,7 @@ def test_mitsuba_reference_renders_the_marching_cubes_mesh():
 @pytest.mark.assets
 @pytest.mark.slow
 def test_neural_bunny_scene_builds():
-    from prtbench.assets import is_fetched
+    from prtbench.io.assets import is_fetched
 
     if not is_fetched("cgal-meshes"):
         pytest.skip("cgal-meshes asset not fetched")

@@ -1,0 +1,410 @@
+"""Golden-metric regression (DESIGN.md §13) gated by trivial images (issue #12).
+
+Every registered method runs in the ``smoke`` profile on its regression case (by default
+``plants`` diffuse under ``sky``, one view; a method's ``regression_case`` class attribute
+overrides scene, variant and light, and may add ``scene_params`` and config ``overrides``
+where the smoke profile alone is too small to beat the trivial images; its
+``regression_variants`` add further cases ``method:variant`` with their own config overrides,
+e.g. a compressed form of the method's transfer) and
+
+1. its masked metrics must beat every trivial image of the same reference by the margins of
+   :mod:`prtbench.bench.trivial` (the flat mean-colour image, the half-bright reference and, for
+   methods with a ``visibility`` knob, the method's own unshadowed render), otherwise it FAILs
+   whatever its baseline says;
+2. its metrics are compared with ``tests/baselines/metrics.json``, which stores each value
+   with an explicit tolerance. A method missing from the baselines is a FAIL, not a pass.
+
+Only ``prtbench regress --update`` rewrites the file, and only when every updated method passes
+the gate. Runs use a fresh temporary cache unless ``cache`` is given, so a precompute change
+without a version bump cannot pass against stale artifacts.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from prtbench.api.cache import atomic_path
+from prtbench.api.errors import InvalidInputError
+from prtbench.bench.trivial import GATE_METRICS, gate_failures, visibility_knob
+
+DEFAULT_BASELINES = Path(__file__).resolve().parents[2] / "tests" / "baselines" / "metrics.json"
+DEFAULT_CASE = {"scene": "plants", "variant": "diffuse", "light": "sky"}
+#: Absolute tolerances per metric: wide enough for Monte-Carlo and rasteriser differences
+#: between machines (llvmpipe vs NVIDIA, llvm vs scalar Mitsuba), tight enough to catch a
+#: broken shader, transfer or mapping (those move PSNR by several dB).
+TOLERANCES = {"psnr_masked": 1.0, "ssim_masked": 0.03, "flip_masked": 0.02, "mae": 0.01}
+
+
+def regression_case(method_cls, variant: str | None = None) -> dict[str, Any]:
+    """The scene/variant/light a method is regressed on.
+
+    ``variant`` names one of the method's ``regression_variants`` (config overrides regressed
+    as a case of their own, baseline key ``method:variant``, e.g. a compressed form).
+    """
+    case = {**DEFAULT_CASE, **getattr(method_cls, "regression_case", {})}
+    if variant is not None:
+        extra = getattr(method_cls, "regression_variants", {})[variant]
+        case["overrides"] = {**case.get("overrides", {}), **extra}
+    return case
+
+
+def case_names() -> list[str]:
+    """Every regression case: each method's name, then ``method:variant`` for its
+    ``regression_variants``."""
+    from prtbench.api.method import METHODS
+
+    names = []
+    for name in METHODS.names():
+        names.append(name)
+        names += [f"{name}:{v}" for v in getattr(METHODS.get(name), "regression_variants", {})]
+    return names
+
+
+def split_case(name: str) -> tuple[str, str | None]:
+    """(method, variant or None) of a case name; unknown names are UnknownNameErrors."""
+    from prtbench.api.errors import UnknownNameError
+    from prtbench.api.method import METHODS
+
+    method, sep, variant = name.partition(":")
+    METHODS.check(method)
+    if sep and variant not in getattr(METHODS.get(method), "regression_variants", {}):
+        raise UnknownNameError("regression case", name, case_names())
+    return method, (variant if sep else None)
+
+
+def _case_of(name: str) -> dict[str, Any]:
+    from prtbench.api.method import METHODS
+
+    method, variant = split_case(name)
+    return regression_case(METHODS.get(method), variant)
+
+
+@dataclass
+class Measurement:
+    """One method's regression run.
+
+    Attributes
+    ----------
+    case : dict
+        Scene, variant and light.
+    metrics : dict of str to float
+        Mean over views of the method's metrics.
+    trivial : dict of str to dict of str to float
+        Mean metrics of each trivial image (``flat``, ``half``, ``unshadowed`` where the
+        method has a visibility knob).
+    skipped : dict of str to str
+        Trivial images not computed, with the reason.
+    """
+
+    case: dict[str, Any]
+    metrics: dict[str, float]
+    trivial: dict[str, dict[str, float]] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+
+    def gate_failures(self) -> list[str]:
+        """Lines naming each trivial image the method does not beat (empty: it passes)."""
+        return gate_failures(self.metrics, self.trivial)
+
+
+def _mean(rows: Sequence[Mapping[str, float]]) -> dict[str, float]:
+    return {k: float(sum(r[k] for r in rows) / len(rows)) for k in rows[0]}
+
+
+def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **fields):
+    """The :class:`~prtbench.bench.runner.RunRequest` of ``method``'s regression case (smoke profile).
+
+    The case's own ``overrides`` (config knobs a method needs for a meaningful smoke case,
+    e.g. a longer training) come first, then ``overrides`` (``--set``); ``fields`` replace
+    request fields (e.g. ``store_results=True`` in a smoke test). Nothing is written by default.
+    """
+    from prtbench.bench.runner import RunRequest
+
+    case = _case_of(method)  # a ``method:variant`` case runs the method with its overrides
+    method = split_case(method)[0]
+    values = dict(method=method, scene=case["scene"], variant=case["variant"],
+                  light=case["light"], profile="smoke", out_dir=None,
+                  overrides={**case.get("overrides", {}), **(overrides or {})},
+                  scene_params=dict(case.get("scene_params", {})),
+                  store_results=False, write_images=False)
+    values.update(fields)
+    return RunRequest(**values)
+
+
+def trivial_metrics(request) -> dict[str, dict[str, float]]:
+    """Mean (over the request's views) metrics of the flat and half-bright images.
+
+    The reference and mask are those a run of ``request`` measures against (same profile,
+    resolution, spp and bounces; the reference comes from the same cache).
+    """
+    from prtbench.bench.runner import geometry_mask, prepare
+    from prtbench.bench.trivial import trivial_scores
+    from prtbench.render.reference import render_reference
+
+    prepared = prepare(request)
+    scene = prepared.scene
+    per_view = []
+    for view in scene.trajectory.views:
+        ref = render_reference(scene, prepared.light, view, width=prepared.width,
+                               height=prepared.height, spp=prepared.profile.reference_spp,
+                               bounces=int(getattr(prepared.config, "bounces", 0)))
+        mask = geometry_mask(scene, view, prepared.width, prepared.height)
+        per_view.append(trivial_scores(ref.image, mask, exposure=scene.exposure))
+    return {name: _mean([v[name] for v in per_view]) for name in per_view[0]}
+
+
+def trivial_results(request) -> tuple[dict[str, dict[str, float]], dict[str, str]]:
+    """(metrics of every trivial image of ``request``, skipped images with their reason).
+
+    Adds the ``unshadowed`` render (the same request with ``visibility=False``) where the
+    method has a visibility knob.
+    """
+    from dataclasses import replace
+
+    from prtbench.api.method import METHODS
+    from prtbench.bench.runner import run
+
+    trivial, skipped = trivial_metrics(request), {}
+    reason = visibility_knob(METHODS.get(request.method))
+    if reason is None:
+        unshadowed = replace(request, overrides={**request.overrides, "visibility": False},
+                             store_results=False, write_images=False, out_dir=None,
+                             json_path=None)
+        trivial["unshadowed"] = run(unshadowed, progress=False, echo=False).mean_metrics()
+    else:
+        skipped["unshadowed"] = reason
+    return trivial, skipped
+
+
+def gate(request, metrics: Mapping[str, float]) -> list[str]:
+    """Lines naming each trivial image of ``request`` that ``metrics`` do not beat.
+
+    For smoke tests: ``assert not gate(request, summary.mean_metrics())``.
+    """
+    trivial, _ = trivial_results(request)
+    return gate_failures(metrics, trivial)
+
+
+def measure(method: str) -> Measurement:
+    """Run ``method`` (or a ``method:variant`` case) on its regression case (smoke profile),
+    with its trivial images."""
+    from prtbench.bench.runner import run
+
+    request = case_request(method)
+    summary = run(request, progress=False, echo=False)
+    trivial, skipped = trivial_results(request)
+    return Measurement(_case_of(method), summary.mean_metrics(), trivial, skipped)
+
+
+@contextmanager
+def _cache_dir(cache: Path | None) -> Iterator[Path]:
+    """``$PRTBENCH_CACHE`` pointed at ``cache``, or at a fresh temporary folder, meanwhile.
+
+    Fetched assets (pinned, checksummed downloads, not artifacts of our code) stay where they
+    were: ``$PRTBENCH_ASSETS`` is pointed at the previous assets folder meanwhile.
+    """
+    from prtbench.io.assets import assets_root
+
+    saved = {k: os.environ.get(k) for k in ("PRTBENCH_CACHE", "PRTBENCH_ASSETS")}
+    assets = assets_root()
+    with tempfile.TemporaryDirectory(prefix="prtbench-regress-") as fresh:
+        root = Path(cache) if cache is not None else Path(fresh)
+        os.environ["PRTBENCH_CACHE"] = str(root)
+        os.environ["PRTBENCH_ASSETS"] = str(assets)
+        try:
+            yield root
+        finally:
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
+
+
+def load_baselines(path: Path, *, required: bool) -> dict[str, Any]:
+    """The baseline file as a dict of method -> entry; a bad file is an InvalidInputError.
+
+    ``required``: a missing file is an error (comparing) rather than an empty dict (updating).
+    Entries are checked one by one in :func:`_entry_metrics`, so that one bad entry fails its
+    method, not the whole run.
+    """
+    path = Path(path)
+    if not path.exists():
+        if required:
+            raise InvalidInputError(f"baseline file '{path}' does not exist; accepted: a JSON file "
+                                    "written by `prtbench regress --update`")
+        return {}
+    if path.is_dir():
+        raise InvalidInputError(f"baseline file '{path}' is a directory; accepted: a JSON file")
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InvalidInputError(f"baseline file '{path}' is not valid JSON ({exc}); "
+                                "accepted: the output of `prtbench regress --update`") from None
+    if not isinstance(data, dict):
+        raise InvalidInputError(f"baseline file '{path}' holds a JSON {type(data).__name__}; "
+                                "accepted: an object of method name -> entry")
+    return data
+
+
+def _number(value: Any) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _known_metric(key: str) -> bool:
+    from prtbench.bench.metrics import LDR_METRICS
+
+    return (key[:-len("_masked")] if key.endswith("_masked") else key) in LDR_METRICS
+
+
+def check_entry(entry: Any, case: Mapping[str, Any]) -> tuple[dict[str, tuple[float, float]],
+                                                               list[str]]:
+    """(metric -> (value, tolerance), problems) of one baseline entry, before any work.
+
+    Problems (each a FAIL line): not an object, a case other than ``case``, no or empty
+    ``metrics``, a value or tolerance that is not a finite number (tolerance >= 0), a metric
+    name the runner never produces.
+    """
+    if not isinstance(entry, dict):
+        return {}, [f"baseline entry is {json.dumps(entry)}; accepted: an object with 'case' "
+                    "and 'metrics'"]
+    if entry.get("case") != dict(case):
+        return {}, [f"baseline recorded on case {json.dumps(entry.get('case'))}, but the "
+                    f"method's regression case is {json.dumps(dict(case))}; update it"]
+    specs = entry.get("metrics")
+    if not isinstance(specs, dict) or not specs:
+        return {}, [f"baseline entry has metrics={json.dumps(specs)}; accepted: a non-empty "
+                    "object of metric -> {value, tolerance}"]
+    out, problems = {}, []
+    for metric, spec in specs.items():
+        value = _number(spec.get("value")) if isinstance(spec, dict) else None
+        tol = _number(spec.get("tolerance")) if isinstance(spec, dict) else None
+        if not _known_metric(metric):
+            problems.append(f"baseline metric '{metric}' is not produced by a run; accepted: "
+                            f"{', '.join(TOLERANCES)} or another metric of prtbench.bench.metrics")
+        elif value is None or tol is None or tol < 0:
+            problems.append(f"baseline {metric} = {json.dumps(spec)}; accepted: "
+                            "{\"value\": finite number, \"tolerance\": finite number >= 0}")
+        else:
+            out[metric] = (value, tol)
+    return out, problems
+
+
+def _fmt(values: Mapping[str, float]) -> str:
+    return ", ".join(f"{m}={values[m]:.4f}" for m in GATE_METRICS if m in values)
+
+
+def _report_gate(name: str, result: Measurement) -> bool:
+    for label, scores in result.trivial.items():
+        print(f"{name}: trivial {label}: {_fmt(scores)}")
+    for label, reason in result.skipped.items():
+        print(f"{name}: trivial {label}: skipped ({reason})")
+    failures = result.gate_failures()
+    for line in failures:
+        print(f"{name}: FAIL {line}")
+    if not failures:
+        print(f"{name}: gate ok ({_fmt(result.metrics)} beats {', '.join(result.trivial)})")
+    return not failures
+
+
+def _compare(name: str, specs: Mapping[str, tuple[float, float]], result: Measurement) -> bool:
+    ok = True
+    for metric, (want, tol) in specs.items():
+        if metric not in result.metrics:
+            print(f"{name}: FAIL baseline metric '{metric}' is not produced; produced: "
+                  f"{', '.join(sorted(result.metrics))}")
+            ok = False
+            continue
+        got = float(result.metrics[metric])
+        passed = abs(got - want) <= tol  # NaN compares False: a FAIL
+        ok &= passed
+        print(f"{name}: {metric} = {got:.4f} (baseline {want:.4f} ± {tol}) "
+              f"{'ok' if passed else 'FAIL'}")
+    return ok
+
+
+def regress(*, update: bool = False, methods: Sequence[str] | None = None,
+            baseline_path: Path | None = None, cache: Path | None = None) -> bool:
+    """Gate and compare (or with ``update``, rewrite) baselines; prints a report.
+
+    Parameters
+    ----------
+    update : bool
+        Rewrite the baselines of ``methods`` (all by default) from this run; refused, writing
+        nothing, if any of them fails the trivial-image gate.
+    methods : sequence of str, optional
+        Method names or ``method:variant`` cases (default: every case, :func:`case_names`).
+    baseline_path : Path, optional
+        Default :data:`DEFAULT_BASELINES`.
+    cache : Path, optional
+        Artifact cache to use; default a fresh temporary one, removed afterwards.
+
+    Returns
+    -------
+    bool
+        True if every method passes the gate and (when comparing) its baseline.
+    """
+    path = Path(baseline_path or DEFAULT_BASELINES)
+    baselines = load_baselines(path, required=not update)
+    if cache is not None and Path(cache).exists() and not Path(cache).is_dir():
+        raise InvalidInputError(f"--cache '{cache}' is a file; accepted: a folder (created if "
+                                "missing)")
+    names = list(methods) if methods else case_names()
+    for name in names:
+        split_case(name)
+    ok = True
+    refused: list[str] = []
+    checked: dict[str, dict[str, tuple[float, float]]] = {}
+    if not update:  # baseline problems are reported before any work
+        for name in names:
+            if name not in baselines:
+                print(f"{name}: FAIL no baseline (run `prtbench regress --update --method "
+                      f"{name}`)")
+                ok = False
+                continue
+            specs, problems = check_entry(baselines[name], _case_of(name))
+            for line in problems:
+                print(f"{name}: FAIL {line}")
+            ok &= not problems
+            checked[name] = specs
+    with _cache_dir(cache):
+        for name in names:
+            start = time.perf_counter()
+            result = measure(name)
+            print(f"{name}: {_fmt(result.metrics)} on {json.dumps(result.case)} "
+                  f"({time.perf_counter() - start:.1f} s with its trivial images)")
+            gate_ok = _report_gate(name, result)
+            ok &= gate_ok
+            if update:
+                if not gate_ok:
+                    refused.append(name)
+                    continue
+                baselines[name] = {"case": result.case, "metrics": {
+                    m: {"value": round(float(result.metrics[m]), 5), "tolerance": tol}
+                    for m, tol in TOLERANCES.items()}}
+                print(f"{name}: baseline updated "
+                      + ", ".join(f"{m}={result.metrics[m]:.4f}" for m in TOLERANCES))
+                continue
+            ok &= _compare(name, checked.get(name, {}), result)
+    if update:
+        if refused:
+            print(f"refused to update the baselines: {', '.join(refused)} "
+                  "do not beat the trivial images (see the FAIL lines); nothing written",
+                  file=sys.stderr)
+            return False
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(baselines, indent=2, sort_keys=True) + "\n")
+        print(f"wrote {path}", file=sys.stderr)
+    return ok
