@@ -30,7 +30,7 @@ test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric re
 	else echo "test-browser skipped: chromium is not installed (make setup installs it as root)"; fi
 
 test-browser: setup  ## the comparison site in headless Chromium (screenshots in reports/site/screenshots)
-	$(PY) -m pytest -q -m browser tests/prtbench/test_site_browser.py
+	$(PY) -m pytest -q -m browser tests/prtbench/site/test_site_browser.py
 
 test-slow: setup  ## heavier tests (marked slow)
 	$(PY) -m pytest -q -m slow

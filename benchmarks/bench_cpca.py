@@ -66,7 +66,7 @@ def bench_fit(signals, clusters, dimension, pca_vectors, iterations) -> None:
 def bench_frames() -> None:
     import methods.vertex.glossy  # noqa: F401
     from prtbench.api.method import METHODS, load_or_precompute
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
     from prtbench.transport.lights import get_light
 
     scene = get_scene("plants", variant="glossy", ground_subdivisions=32)

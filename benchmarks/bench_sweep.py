@@ -76,7 +76,7 @@ def main() -> int:
             times[(n, threads)] = time.perf_counter() - start
             cpu = _children_cpu() - cpu0  # the workers, reaped when the cluster closed
             failed = outcome.count("failed")
-            busy = sum(c.seconds for c in outcome.cells)
+            busy = sum(c.seconds for c in outcome.results)
             wall = times[(n, threads)]
             print(f"{n} worker(s), {_threads_label(threads)}: {wall:.1f} s wall ({outcome.count('done')} done, "
                   f"{failed} failed; {busy:.1f} s in cells; worker CPU {cpu:.1f} s = "

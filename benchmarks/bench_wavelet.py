@@ -67,7 +67,7 @@ def main() -> int:
     parser.add_argument("--no-relight", action="store_true", help="skip part 2")
     args = parser.parse_args()
 
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
     from prtbench.transport.lights import get_light
     from prtbench.transport.parallel import available_cores, map_chunks, parallel_chunks
     from prtbench.transport.raytrace import CHUNK_RAYS, Tracer

@@ -60,7 +60,7 @@ def main() -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
     import methods.wavelet.tp as wtp  # the renderer's column → row conversion
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
     from prtbench.transport.lights import get_light
     from prtbench.transport.wavelet import brdf, haar, selection
     from prtbench.transport.wavelet.cubemap import light_cubemap

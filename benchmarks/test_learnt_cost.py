@@ -18,7 +18,7 @@ import pytest
 
 import methods.learnt  # noqa: F401 - registers "learnt"
 from prtbench.api.method import METHODS, load_or_precompute
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from prtbench.transport.lights import get_light
 
 RESOLUTIONS = [(320, 240), (640, 480)]

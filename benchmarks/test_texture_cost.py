@@ -23,7 +23,7 @@ from methods.texture import SHADER_DIR
 from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.render import gl
 from prtbench.render.raster import clip_planes
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from prtbench.transport.lights import get_light
 
 RESOLUTIONS = [(320, 240), (640, 480)]

@@ -24,7 +24,7 @@ import methods.vertex.glossy  # noqa: F401  (registers the methods)
 from prtbench.api.errors import PrtbenchError
 from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.render import prt_shading as _triple
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from prtbench.transport.lights import get_light
 
 BANDS = (3, 4, 5, 6, 7, 8)

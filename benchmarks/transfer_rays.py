@@ -11,9 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from prtbench.api.errors import PrtbenchError
-from prtbench.scene.model import Scene, get_scene
+from prtbench.scene.model import Scene
+from prtbench.scene.registry import get_scene
+from prtbench.transport.ray_pattern import RayPattern
 from prtbench.transport.raytrace import Tracer, offset_origins
-from prtbench.transport.transfer import RayPattern
 
 
 def benchmark_scene() -> Scene:

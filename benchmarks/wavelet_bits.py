@@ -46,7 +46,7 @@ def _lobes(sl: slice, dirs_t: np.ndarray) -> np.ndarray:
 
 def transports() -> dict[str, np.ndarray]:
     """Every array of every case's transport, as ``{"case/array": array}``."""
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
     from prtbench.transport.raytrace import Tracer
     from prtbench.transport.wavelet.transport import compute_wavelet_transport
 

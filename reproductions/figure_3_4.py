@@ -13,8 +13,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
-from reproductions import _panels
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Figure, display_panels, provenance_line
+from prtbench.io import imageio
+from prtbench.store import measurements
+from reproductions import plots, shared
 from reproductions.table_3_1 import ensure_texture_methods, scene_choices
 
 #: Ground (or floor) quads per side of the high-tessellation column: 2·64² = 8192 triangles.
@@ -56,7 +59,7 @@ class Figure34(Figure):
     def scenes(self, profile: str) -> tuple[str, ...]:
         return SCENES.get(profile, SCENES["quick"])
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         """One cell per panel except the reference column, one view each."""
         ensure_texture_methods()
         choices = {c.scene: c for c in scene_choices(profile)}
@@ -68,7 +71,7 @@ class Figure34(Figure):
                 params = dict(choice.scene_params) if choice else {}
                 if high:
                     params[GROUND_PARAMETER[scene]] = HIGH_SUBDIVISIONS
-                cells.append(Cell(method=method, scene=scene, variant=VARIANT, views=1,
+                cells.append(Job(method=method, scene=scene, variant=VARIANT, views=1,
                                   scene_params=params,
                                   overrides=choice.overrides(method) if choice else {},
                                   label={"scene": scene, "column": column}))
@@ -76,17 +79,15 @@ class Figure34(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench.io import imageio
-        from prtbench.store import measurements
 
-        runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
+        runs = shared.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
         images, scenes = {}, {}
         for run in runs:
             scene, column = run.cell.label["scene"], run.cell.label["column"]
             display = imageio.display(run.image, exposure=run.scene.exposure)
             h, w = display.shape[:2]
-            edges, _ = _panels.render_wireframe(run.scene, run.scene.trajectory.views[0],
+            edges, _ = shared.render_wireframe(run.scene, run.scene.trajectory.views[0],
                                                 width=WIRE_SCALE * w, height=WIRE_SCALE * h)
             images[f"{scene}/{column}/display"] = display
             images[f"{scene}/{column}/edges"] = edges
@@ -99,22 +100,20 @@ class Figure34(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         frame, images = stored.frame(), stored.images()
         table = stored.table(TABLE)
-        scenes = _panels.records(table)
+        scenes = shared.records(table)
         rows, captions, row_labels, caption_rows = [], [], [], []
         for info in scenes:
             scene = info["scene"]
             panels, texts = [], []
             for column, (label, method, high) in enumerate(COLUMNS):
                 part = frame[(frame["label_scene"] == scene) & (frame["label_column"] == column)]
-                panels.append(_panels.wireframe_overlay(
+                panels.append(shared.wireframe_overlay(
                     images[f"{scene}/{column}/display"], images[f"{scene}/{column}/edges"],
                     crop=CROPS.get(scene, DEFAULT_CROP)))
-                fps = _panels.fps(part)
+                fps = shared.fps(part)
                 psnr = float(part["metric_psnr_masked"].mean())
                 texts.append(f"{fps:.3g} FPS  {psnr:.1f} dB")
                 caption_rows.append([
@@ -129,16 +128,16 @@ class Figure34(Figure):
             captions.append(texts)
             row_labels.append(f"{scene}\n{info['n_triangles']} tris")
         spp = int(frame["reference_spp"].iloc[0])
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", rows,
+        png = plots.panel_grid(reports_dir / f"figure-{self.name}.png", rows,
                                 column_labels=[c[0] for c in COLUMNS] + [f"Mitsuba path\n{spp} spp"],
                                 row_labels=row_labels, captions=captions,
                                 title=self.title + f" ({profile} profile)")
-        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md",
+        md = shared.write_caption(reports_dir / f"figure-{self.name}.md",
                                    self.caption_lines(frame, table, caption_rows, profile=profile))
         return [png, md]
 
     def caption_lines(self, frame, table, rows, *, profile: str) -> list[str]:
-        scenes = _panels.records(table)
+        scenes = shared.records(table)
         renderer = ", ".join(sorted(set(frame["renderer"].astype(str))))
         timing = ", ".join(sorted(set(frame["timing_source"].astype(str))))
         width, height = int(frame["width"].iloc[0]), int(frame["height"].iloc[0])
@@ -156,7 +155,7 @@ class Figure34(Figure):
                  "(ground beside the objects, where their shadows fall). Labels: FPS and masked "
                  "PSNR against the direct-only Mitsuba "
                  "path reference (last column), from the results store.", "",
-                 *_panels.markdown_table(CAPTION_HEADER, rows)]
+                 *shared.markdown_table(CAPTION_HEADER, rows)]
         if subs:
             lines += ["", "Scene substitutions:", ""] + [f"- {s}" for s in subs]
         return lines

@@ -14,8 +14,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
-from reproductions import _panels
+from prtbench.bench import metrics
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Figure, display_panels, provenance_line
+from prtbench.io import imageio
+from prtbench.store import measurements
+from prtbench.transport.raytrace import geometry_mask
+from reproductions import plots, shared
 from reproductions.table_3_1 import ensure_texture_methods
 
 #: (our scene, variant, the paper scene it stands for).
@@ -36,20 +41,16 @@ class Figure35(Figure):
              "renders with transfer textures (diffuse Monkey, glossy Roza) and their FPS")
     title = "Figure 3.5: transfer textures with 0 and 1 interreflection bounce"
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_texture_methods()
-        return [Cell(method=METHOD, scene=scene, variant=variant, views=1,
+        return [Job(method=METHOD, scene=scene, variant=variant, views=1,
                      overrides={"bounces": b}, label={"scene": scene, "bounces": b})
                 for scene, variant, _ in SCENES for b in BOUNCES]
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench.bench import metrics
-        from prtbench.bench.runner import geometry_mask
-        from prtbench.io import imageio
-        from prtbench.store import measurements
 
-        runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
+        runs = shared.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
         by_key = {(r.cell.label["scene"], r.cell.label["bounces"]): r for r in runs}
         images, rows = {}, []
@@ -74,19 +75,17 @@ class Figure35(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         frame, images = stored.frame(), stored.images()
         table = stored.table(TABLE)
-        extra = {r["cell_run_id"]: r for r in _panels.records(table)}
+        extra = {r["cell_run_id"]: r for r in shared.records(table)}
         grid_rows, captions, row_labels, caption_rows = [], [], [], []
         for scene, variant, paper_scene in SCENES:
             texts, panels = [], []
             for bounces in BOUNCES:
                 part = frame[(frame["label_scene"] == scene) & (frame["label_bounces"] == bounces)]
                 run_id = str(part["run_id"].iloc[0])
-                fps = _panels.fps(part)
+                fps = shared.fps(part)
                 own = float(part["metric_psnr_masked"].mean())
                 vs_one = extra[run_id]["psnr_masked_vs_one_bounce"]
                 text = f"{fps:.3g} FPS\nvs 1-bounce ref {vs_one:.1f} dB"
@@ -105,7 +104,7 @@ class Figure35(Figure):
             captions.append(texts)
             row_labels.append(f"{scene}\n({variant})\nfor {paper_scene}")
         spp = int(frame["reference_spp"].iloc[0])
-        png = _plots.panel_grid(
+        png = plots.panel_grid(
             reports_dir / f"figure-{self.name}.png", grid_rows, row_labels=row_labels,
             captions=captions, title=self.title + f" ({profile} profile)",
             column_labels=["texture TPFL\n0 bounces", "texture TPFL\n1 bounce",
@@ -126,11 +125,11 @@ class Figure35(Figure):
             "1-bounce reference\" is measured after the runs from their images with the same "
             "masked PSNR and stored as measurement table `figure-3.5`. Memory includes the "
             "bounce texture (RGB transferred radiance, ⌈3n²/4⌉ RGBA layers per texture).", "",
-            *_panels.markdown_table(CAPTION_HEADER, caption_rows),
+            *shared.markdown_table(CAPTION_HEADER, caption_rows),
         ]
         if subs:
             lines += ["", "Scene substitutions:", ""] + [f"- {s}" for s in subs]
-        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        md = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, md]
 
 

@@ -21,8 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
-from reproductions import _panels
+from prtbench.api import config as config_mod
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.api.profiles import get_profile
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Figure, display_panels, provenance_line
+from prtbench.bench.runner import device_description
+from prtbench.io import imageio
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from reproductions import plots, shared
 from reproductions.table_3_1 import ensure_texture_methods
 
 SCENE = "room"
@@ -47,10 +56,6 @@ def render_direct(*, method: str, scene, profile: str, width: int, height: int,
         ``image`` (H, W, 3) linear float32, ``frame_ms``, ``frame_ms_p95``, ``memory_bytes``,
         ``renderer``, ``timing_source``, ``config`` (dict).
     """
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS, load_or_precompute
-    from prtbench.api.profiles import get_profile
-    from prtbench.transport.lights import get_light
 
     cls = METHODS.get(method)
     config = cls.make_config(profile=profile)
@@ -78,24 +83,20 @@ class Figure36(Figure):
              "floor with a normal map, rendered with TPFL and transfer textures")
     title = "Figure 3.6: normal maps with transfer textures (room floor, texture TPFL)"
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         """The runner cell: the room without normal map (the normal-mapped render is direct)."""
         ensure_texture_methods()
-        return [Cell(method=METHOD, scene=SCENE, variant=VARIANT, views=1,
+        return [Job(method=METHOD, scene=SCENE, variant=VARIANT, views=1,
                      scene_params={"normal_mapped_floor": False},
                      label={"normal_map": False})]
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench.bench.runner import device_description
-        from prtbench.io import imageio
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
 
         cells = self.cells(profile)
         mapped_scene = get_scene(SCENE, variant=VARIANT, normal_mapped_floor=True).with_views(1)
         ensure_texture_methods()
-        plain = _panels.run_cells(cells, profile=profile, results_path=results_path,
+        plain = shared.run_cells(cells, profile=profile, results_path=results_path,
                                   progress=progress, tag=f"figure {self.name}")[0]
         h, w = plain.image.shape[:2]
         print(f"[figure {self.name}] normal-mapped floor (direct render, no path metric)",
@@ -104,7 +105,7 @@ class Figure36(Figure):
                                height=h, progress=progress)
         exposure = plain.scene.exposure
         view = mapped_scene.trajectory.views[0]
-        edges, _ = _panels.render_wireframe(mapped_scene, view, width=WIRE_SCALE * w,
+        edges, _ = shared.render_wireframe(mapped_scene, view, width=WIRE_SCALE * w,
                                             height=WIRE_SCALE * h)
         images = {"without": imageio.display(plain.image, exposure=exposure),
                   "with": imageio.display(mapped["image"], exposure=exposure), "edges": edges}
@@ -121,26 +122,24 @@ class Figure36(Figure):
         return {plain.run_id: dict(plain.cell.label)}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         stored_rows, images = stored.frame(), stored.images()
         table = stored.table(TABLE)
-        mapped = _panels.records(table)[0]
+        mapped = shared.records(table)[0]
         without, with_map, edges = images["without"], images["with"], images["edges"]
         h, w = without.shape[:2]
         edges_1x = edges.reshape(h, WIRE_SCALE, w, WIRE_SCALE).mean(axis=(1, 3))
-        plain_fps = _panels.fps(stored_rows)
+        plain_fps = shared.fps(stored_rows)
         mapped_fps = 1000.0 / mapped["frame_ms"]
         psnr = float(stored_rows["metric_psnr_masked"].mean())
         difference = np.clip(DIFFERENCE_GAIN * np.abs(with_map - without), 0, 1)
-        wire = without * 0.45 + 0.55 * edges_1x[..., None] * np.asarray(_panels.WIRE, np.float32)
-        panels = [without, _panels.wireframe_overlay(with_map, edges, crop=CROP),
+        wire = without * 0.45 + 0.55 * edges_1x[..., None] * np.asarray(shared.WIRE, np.float32)
+        panels = [without, shared.wireframe_overlay(with_map, edges, crop=CROP),
                   wire.astype(np.float32), difference.astype(np.float32)]
         captions = [f"{plain_fps:.3g} FPS\npath PSNR {psnr:.1f} dB",
                     f"{mapped_fps:.3g} FPS\nno path metric", f"{int(mapped['n_triangles'])} tris",
                     f"|difference| x{DIFFERENCE_GAIN:g}"]
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
+        png = plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
                                 captions=[captions], title=self.title + f" ({profile} profile)",
                                 column_labels=["without normal map", "with normal map",
                                                "wireframe (2-triangle floor)",
@@ -173,10 +172,10 @@ class Figure36(Figure):
             f"The normal map changes {100 * floor_mask.mean():.1f} % of the pixels by more "
             "than one display level (last panel, |with − without| × "
             f"{DIFFERENCE_GAIN:g}).", "",
-            *_panels.markdown_table(header, rows),
+            *shared.markdown_table(header, rows),
             "", f"Scene substitution: {mapped['substitution']}.",
         ]
-        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        md = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, md]
 
 

@@ -10,12 +10,23 @@ texture baseline also stores.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
+from methods.learnt.data import heldout_samples
+from methods.learnt.model import LearntModel
+from prtbench.api.method import METHODS, load_or_precompute
 from prtbench.bench.reproduction import Figure, Stored, provenance_line
-from reproductions import _panels
+from prtbench.bench.runner import device_description
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.latlong import lat_long_directions
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.sh import eval_sh
+from prtbench.transport.transfer import compute_transfer
+from reproductions import plots, shared
 from reproductions.table_4_1 import ensure_methods, learnt_overrides
 
 #: Measurement table of the figure's numbers (one row per point; canvases as images).
@@ -39,7 +50,6 @@ def colour_map(values: np.ndarray, *, top: float) -> np.ndarray:
 
 def canvas_directions() -> np.ndarray:
     """(H, W, 3) directions of the canvas texel centres (Mitsuba's lat-long mapping)."""
-    from prtbench.transport.lights import lat_long_directions
 
     h, w = CANVAS
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
@@ -52,7 +62,6 @@ def pick_points(scene, heldout, transfer: np.ndarray) -> list[int]:
     Normals facing up (n_y > 0.25) keep the ground's horizon from being the occluder, so the
     shadowing comes from the object itself (the thesis picks points in ROZA's hair).
     """
-    import math
 
     main = int(np.argmax([o.mesh.n_vertices for o in scene.objects]))
     on_main = np.nonzero(heldout.object_ids == main)[0]
@@ -79,15 +88,6 @@ class Figure411(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from methods.learnt.data import heldout_samples
-        from methods.learnt.model import LearntModel
-        from prtbench.api.method import METHODS, load_or_precompute
-        from prtbench.bench.runner import device_description
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from prtbench.transport.raytrace import Tracer, offset_origins
-        from prtbench.transport.sh import eval_sh
-        from prtbench.transport.transfer import compute_transfer
 
         ensure_methods()
         scene = get_scene(self.scene_name)
@@ -137,11 +137,9 @@ class Figure411(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         table = stored.table(TABLE)
-        stats = _panels.records(table)
+        stats = shared.records(table)
         images = stored.images()
         grid = [[colour_map(images[f"{r['point']}/raw"], top=1.0),
                  colour_map(images[f"{r['point']}/truth"], top=1.0),
@@ -151,7 +149,7 @@ class Figure411(Figure):
         c = stats[0]
         labels = ["ray-traced V·cos", f"ground truth ({c['sh_bands']} bands)",
                   f"MLP k={c['hidden']}, l={c['layers']}", "|difference| (x4)"]
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", grid,
+        png = plots.panel_grid(reports_dir / f"figure-{self.name}.png", grid,
                                 column_labels=labels,
                                 row_labels=[f"point {r['point']}" for r in stats],
                                 title=self.title)
@@ -165,7 +163,7 @@ class Figure411(Figure):
                  "held-out mesh vertices (never training points) of the object with most "
                  "vertices, facing up, chosen where the object shadows about half of the "
                  "cosine-weighted hemisphere.", "", provenance_line([table], profile=profile), ""]
-        lines += _panels.markdown_table(
+        lines += shared.markdown_table(
             ["point", "position", "normal", "relative L2 error of T",
              "max abs ΔT(ω) on the canvas"],
             [[r["point"], np.round(np.asarray(r["position"]), 3).tolist(),
@@ -175,7 +173,7 @@ class Figure411(Figure):
                       f"RMS {c['heldout_relative_rms']:.4f}, DC {c['heldout_dc_relative']:.4f}."]
         if c["scene"] == "bust":
             lines += ["", *(f"Substitution: {s}" for s in self.substitutions)]
-        caption = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        caption = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, caption]
 
 

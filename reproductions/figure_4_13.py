@@ -14,8 +14,23 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.learnt.torch_renderer import shade_torch
+from prtbench.api.config import with_overrides
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.api.profiles import get_profile
+from prtbench.bench import metrics
 from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line
-from reproductions import _panels
+from prtbench.bench.runner import device_description
+from prtbench.io import imageio
+from prtbench.render.prt_shading import tpfl_matrix_rgb
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import Material, SceneObject
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import geometry_mask
+from prtbench.transport.transfer import compute_transfer
+from reproductions import plots, shared
 from reproductions.table_4_1 import ensure_methods, learnt_overrides
 
 #: Width of the networks compared (the thesis does not state it; table 4.1's smaller one).
@@ -28,7 +43,6 @@ ORACLE_RAYS = 1024
 
 def white_scene(scene):
     """``scene`` with every material replaced by a white diffuse one ("albedo disabled")."""
-    from prtbench.scene.model import Material, SceneObject
 
     objects = [SceneObject(o.name, o.mesh, Material(kd=ALBEDO, name="white"))
                for o in scene.objects]
@@ -39,10 +53,6 @@ def white_scene(scene):
 def traced_transfer_image(renderer, scene, view, light, *, bands: int) -> np.ndarray:
     """Shade the transfer traced at each covered pixel of the torch renderer's G-buffer."""
     import torch
-
-    from methods.learnt.torch_renderer import shade_torch
-    from prtbench.render.prt_shading import tpfl_matrix_rgb
-    from prtbench.transport.transfer import compute_transfer
 
     renderer.render(view, light)  # fills the G-buffers
     g = [renderer.target.read(i) for i in range(4)]
@@ -74,16 +84,6 @@ class Figure413(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench.api.config import with_overrides
-        from prtbench.api.method import METHODS, load_or_precompute
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench import metrics
-        from prtbench.bench.runner import device_description, geometry_mask
-        from prtbench.io import imageio
-        from prtbench.render.reference import render_reference
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from prtbench.transport.lights import get_light
 
         ensure_methods()
         prof = get_profile(profile)
@@ -137,11 +137,9 @@ class Figure413(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         table = stored.table(TABLE)
-        rows = _panels.records(table)
+        rows = shared.records(table)
         shown = stored.images()
         c = rows[0]
         pe = next(r["pe_frequencies"] for r in rows if r["network"] == "PE")
@@ -150,7 +148,7 @@ class Figure413(Figure):
         labels = [f"no positional encoding\n(k={c['hidden']})",
                   f"positional encoding F={pe}\n(k={c['hidden']})",
                   f"traced transfer per pixel\n({c['sh_bands']} SH bands)", "path reference"]
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
+        png = plots.panel_grid(reports_dir / f"figure-{self.name}.png", [panels],
                                 column_labels=labels, captions=[captions], title=self.title)
         lines = [f"# {self.title}", "", f"Source: {self.paper}", "",
                  f"Profile `{profile}`, {int(c['width'])}x{int(c['height'])}, first trajectory "
@@ -161,7 +159,7 @@ class Figure413(Figure):
                  f"pixel ({ORACLE_RAYS} rays) with the same bands and shading: the target the "
                  "networks learn, so PSNR against it is the learning error alone. The path "
                  "reference adds SH truncation.", "", provenance_line([table], profile=profile), ""]
-        lines += _panels.markdown_table(
+        lines += shared.markdown_table(
             ["network", "PE frequencies", "PSNR masked vs traced (dB)",
              "PSNR masked vs path (dB)", "held-out vertex rel. RMS", "held-out surface rel. RMS"],
             [[r["network"], r["pe_frequencies"], r["psnr_masked_vs_traced"],
@@ -169,7 +167,7 @@ class Figure413(Figure):
               r["heldout_surface_relative_rms"]] for r in rows])
         for s in self.substitutions:
             lines.append(f"\nSubstitution: {s}")
-        caption = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        caption = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, caption]
 
 

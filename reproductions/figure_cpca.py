@@ -19,8 +19,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prtbench.bench.reproduction import Cell, Figure, display_panels, provenance_line
-from reproductions import _panels
+from prtbench.api.method import METHODS
+from prtbench.bench import metrics
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Figure, display_panels, provenance_line
+from prtbench.io import imageio
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.compress import stored_bytes
+from prtbench.transport.raytrace import geometry_mask
+from reproductions import plots, shared
 from reproductions.table_cpca import CASES, LIGHT, SMOKE_CASES, form_facts, form_overrides
 
 #: The CPCA form whose stored bytes set each case's budget: (K, n′) per profile.
@@ -41,7 +49,6 @@ def equal_memory_forms(*, n_signals: int, dimension: int, clusters: int, pca_vec
     PCA (K = 1) takes the most vectors and VQ (n′ = 0) the most clusters whose
     :func:`~prtbench.transport.compress.cpca.stored_bytes` fit the budget.
     """
-    from prtbench.transport.compress import stored_bytes
 
     def size(k: int, n: int) -> int:
         return stored_bytes(n_signals=n_signals, dimension=dimension, clusters=k,
@@ -55,9 +62,6 @@ def equal_memory_forms(*, n_signals: int, dimension: int, clusters: int, pca_vec
 
 
 def _case_forms(case, profile: str) -> dict[str, tuple[int, int]]:
-    from prtbench.api.method import METHODS
-    from prtbench.scene.model import get_scene
-
     _, method, scene, variant, params, base = case
     bands = METHODS.get(method).make_config(base, profile=profile).sh_bands
     n_signals = get_scene(scene, variant=variant, **params).n_vertices
@@ -75,29 +79,23 @@ class FigureCpca(Figure):
     substitutions = ("`bust` (the scanned snowden bust) stands in for Sloan 2003's scanned "
                      "models; `plants` is our procedural scene.",)
 
-    def cells(self, profile: str) -> list[Cell]:
-        import methods.vertex.glossy  # noqa: F401  (registers sloan-matrix)
-
+    def cells(self, profile: str) -> list[Job]:
         cells = []
         for case in SMOKE_CASES if profile == "smoke" else CASES:
             label, method, scene, variant, params, base = case
             common = dict(method=method, scene=scene, variant=variant, light=LIGHT, views=1,
                           scene_params=params)
-            cells.append(Cell(**common, overrides=dict(base),
+            cells.append(Job(**common, overrides=dict(base),
                               label={"case": label, "form": "none", "K": 0, "n": -1}))
             for form, (k, n) in _case_forms(case, profile).items():
-                cells.append(Cell(**common, overrides={**base, **form_overrides(k, n)},
+                cells.append(Job(**common, overrides={**base, **form_overrides(k, n)},
                                   label={"case": label, "form": form, "K": k, "n": n}))
         return cells
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from prtbench.bench import metrics
-        from prtbench.bench.runner import geometry_mask
-        from prtbench.io import imageio
-        from prtbench.store import measurements
 
-        runs = _panels.run_cells(self.cells(profile), profile=profile, results_path=results_path,
+        runs = shared.run_cells(self.cells(profile), profile=profile, results_path=results_path,
                                  progress=progress, tag=f"figure {self.name}")
         images, rows = {}, []
         for case in dict.fromkeys(r.cell.label["case"] for r in runs):
@@ -111,7 +109,7 @@ class FigureCpca(Figure):
             images[f"{case}/path"] = plain.reference
             for form, run in mine.items():
                 images[f"{case}/{form}"] = shown[form]
-                images[f"{case}/{form}/error"] = _panels.error_image(
+                images[f"{case}/{form}/error"] = shared.error_image(
                     shown[form], shown["none"], scale=ERROR_SCALE)
                 facts = form_facts(run.rows)
                 rows.append({
@@ -129,12 +127,10 @@ class FigureCpca(Figure):
         return {run.run_id: dict(run.cell.label) for run in runs}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _plots
-
         profile = stored.profile
         frame, images = stored.frame(), stored.images()
         table = stored.table(TABLE)
-        extra = {r["cell_run_id"]: r for r in _panels.records(table)}
+        extra = {r["cell_run_id"]: r for r in shared.records(table)}
         grid, captions, row_labels, caption_rows = [], [], [], []
         order = ("none", *FORMS)
         for case in dict.fromkeys(r["case"] for r in extra.values()):
@@ -167,7 +163,7 @@ class FigureCpca(Figure):
             captions += [texts, error_texts]
             row_labels += [case, f"{case}\n|form − none| ×{ERROR_SCALE:g}"]
         spp = int(frame["reference_spp"].iloc[0])
-        png = _plots.panel_grid(
+        png = plots.panel_grid(
             reports_dir / f"figure-{self.name}.png", grid, row_labels=row_labels,
             captions=captions, title=self.title + f" ({profile} profile)",
             column_labels=["uncompressed", "global PCA (K = 1)", "VQ (n′ = 0)", "CPCA",
@@ -189,14 +185,14 @@ class FigureCpca(Figure):
             "and stored as measurement table `figure-cpca`, like the stored bytes and transfer "
             "RMSE of each cached form. Frame times on llvmpipe (a CPU rasteriser) compare only "
             "within this figure.", "",
-            *_panels.markdown_table(
+            *shared.markdown_table(
                 ["case", "method", "form", "K", "n′", "stored bytes", "resident bytes", "ratio",
                  "transfer RMSE", "PSNR masked vs path (dB)", "PSNR masked vs none (dB)",
                  "FLIP masked", "frame ms", "run id"], caption_rows),
         ]
         if subs:
             lines += ["", "Scene substitutions:", ""] + [f"- {s}" for s in subs]
-        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        md = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, md]
 
 

@@ -16,8 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.data_driven.method import DataDrivenPRT
 from prtbench.api.cache import atomic_path
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.api.profiles import get_profile
+from prtbench.bench import metrics
 from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.bench.runner import device_description
+from prtbench.io.imageio import display
+from prtbench.render.reference import render_reference
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer, geometry_mask, offset_origins
+from reproductions import plots, shared
+from scenes.lights import SUN_DIRECTION
 
 SCENE = "lion"
 SCENE_PARAMS = {"ground_subdivisions": 48}  # fair to vertex PRT: its ground can hold a shadow
@@ -34,7 +47,6 @@ SETTINGS = {
 
 def unlit_mask(scene, view, width: int, height: int, direction: np.ndarray) -> np.ndarray:
     """(H, W) bool: geometry pixels whose surface faces away from ``direction`` or is shadowed."""
-    from prtbench.transport.raytrace import Tracer, offset_origins
 
     tracer = Tracer.from_scene(scene)
     origins, dirs = view.primary_rays(width, height)
@@ -71,19 +83,6 @@ class FigureDdprt12(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        import methods.data_driven  # noqa: F401 - registers the method
-        import methods.vertex.diffuse  # noqa: F401
-        from methods.data_driven.method import DataDrivenPRT
-        from prtbench.api.method import METHODS, load_or_precompute
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench import metrics
-        from prtbench.bench.runner import device_description, geometry_mask
-        from prtbench.io.imageio import display
-        from prtbench.render.reference import render_reference
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from prtbench.transport.lights import SUN_DIRECTION, get_light
-        from reproductions import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE, **SCENE_PARAMS).with_views(1)
@@ -131,7 +130,7 @@ class FigureDdprt12(Figure):
                          "flip_masked": values["flip_masked"], "mean_radiance_unlit": leak,
                          "unlit_vs_reference": leak / ref_unlit, **common})
             images[label] = d
-            errors[f"{label}: |error| x4"] = _panels.error_image(image, ref.image,
+            errors[f"{label}: |error| x4"] = shared.error_image(image, ref.image,
                                                                  scale=4.0 * scene.exposure)
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=", ".join(sorted(renderer_names - {""})),
@@ -140,14 +139,12 @@ class FigureDdprt12(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _panels, _plots
-
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         table = stored.table(TABLE)
-        records = _panels.records(table)
+        records = shared.records(table)
         images = stored.images()
-        png = _plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
+        png = plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
                                  columns=3)
         header = ["image", "psnr_masked_db", "flip_masked", "mean_radiance_unlit",
                   "unlit_vs_reference"]

@@ -23,8 +23,19 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.data_driven.dataset import build_dataset
+from methods.data_driven.evaluation import image_study, lightmap_study, reference_lightmaps
+from methods.data_driven.method import DataDrivenPRT
 from prtbench.api.cache import atomic_path
+from prtbench.api.profiles import get_profile
 from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.bench.runner import device_description
+from prtbench.io.imageio import display
+from prtbench.render import gl
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from reproductions import plots, shared
 
 COUNTS = (1, 2, 4, 8, 16, 32, 64)
 RIDGES = (1e-3, 1e-2)
@@ -72,17 +83,6 @@ class FigureDdprt14(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        import methods.data_driven  # noqa: F401 - registers the method
-        from methods.data_driven.dataset import build_dataset
-        from methods.data_driven.evaluation import image_study, lightmap_study, reference_lightmaps
-        from methods.data_driven.method import DataDrivenPRT
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench.runner import device_description
-        from prtbench.io.imageio import display
-        from prtbench.render import gl
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from prtbench.transport.lights import get_light
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         counts = settings["counts"]
@@ -127,12 +127,10 @@ class FigureDdprt14(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _panels, _plots
-
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         table = stored.table(TABLE)
-        records = _panels.records(table)
+        records = shared.records(table)
         header = ["space", "family", "ridge", "basis", "ours_rmse", "projection_rmse", "ratio",
                   "reference_rms", "reference_noise_rmse"]
         rows = [[r["space"], r["family"], r["ridge"], r["basis"], r["ours_rmse"],
@@ -154,11 +152,11 @@ class FigureDdprt14(Figure):
                         counts, [r["projection_rmse"] / rms for r in part], True)
                 checks[(family, ridge)] = criteria(counts, [r["ours_rmse"] for r in part],
                                                    [r["projection_rmse"] for r in part])
-        png = _plots.line_plot(reports_dir / f"figure-{self.name}.png", series,
+        png = plots.line_plot(reports_dir / f"figure-{self.name}.png", series,
                                title=f"{SCENE}: held-out lights, lightmap space",
                                xlabel="basis elements n (mean included)",
                                ylabel="RMSE / RMS(reference)")
-        images_png = _plots.titled_grid(reports_dir / f"figure-{self.name}-images.png",
+        images_png = plots.titled_grid(reports_dir / f"figure-{self.name}-images.png",
                                         stored.images(), columns=2)
         csv_path = write_csv(reports_dir / f"figure-{self.name}.csv", header, rows)
         spp = next((int(r["reference_spp"]) for r in records if r["space"] == "image"), None)
@@ -177,7 +175,7 @@ class FigureDdprt14(Figure):
                  f"{settings['overrides']}; {settings['test_lights']} held-out lights per family; "
                  f"reference lightmaps baked with {settings['factor']}× the training paths. "
                  "Reference kind: `path` (our embree bake, shown equal to Mitsuba in "
-                 "tests/methods/test_data_driven.py, for the lightmap rows; Mitsuba "
+                 "tests/methods/data_driven/test_data_driven.py, for the lightmap rows; Mitsuba "
                  f"indirect-only, {spp} spp, for the image rows). Indirect light only, linear "
                  "radiance.", "", provenance, "",
                  "`figure-ddprt-14.png`: RMSE relative to the reference's RMS (plain: ours, "

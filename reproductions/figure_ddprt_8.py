@@ -13,8 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.data_driven.evaluation import held_out, image_study
+from methods.data_driven.lights import DirectionalLight
+from methods.data_driven.method import DataDrivenPRT
 from prtbench.api.cache import atomic_path
+from prtbench.api.profiles import get_profile
 from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.bench.runner import device_description
+from prtbench.io.imageio import display
+from prtbench.render import gl
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from reproductions import plots, shared
 
 SCENE = "room"
 #: Measurement table of the figure's numbers (one row per light).
@@ -43,17 +53,6 @@ class FigureDdprt8(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        import methods.data_driven  # noqa: F401 - registers the method
-        from methods.data_driven.evaluation import held_out, image_study
-        from methods.data_driven.lights import DirectionalLight
-        from methods.data_driven.method import DataDrivenPRT
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench.runner import device_description
-        from prtbench.io.imageio import display
-        from prtbench.render import gl
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from reproductions import _panels
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         scene = get_scene(SCENE)
@@ -89,7 +88,7 @@ class FigureDdprt8(Figure):
                 f"{short}: Mitsuba": display(ref_total, exposure=exposure),
                 f"{short}: ours indirect x4": display(study.ours, exposure=gain),
                 f"{short}: Mitsuba indirect x4": display(study.reference, exposure=gain),
-                f"{short}: |indirect error| x4": _panels.error_image(study.ours, study.reference,
+                f"{short}: |indirect error| x4": shared.error_image(study.ours, study.reference,
                                                                      scale=gain)})
         measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
                             profile=profile, renderer=gl.renderer_string(),  # image_study's GL
@@ -97,14 +96,12 @@ class FigureDdprt8(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _panels, _plots
-
         profile = stored.profile
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         table = stored.table(TABLE)
-        records = _panels.records(table)
+        records = shared.records(table)
         images = stored.images()
-        png = _plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
+        png = plots.titled_grid(reports_dir / f"figure-{self.name}.png", images,
                                  columns=5)
         header = ["case", "light", "indirect_rmse", "indirect_rmse_relative", "projection_rmse",
                   "projection_rmse_relative", "total_rmse", "reference_noise_rmse"]

@@ -23,8 +23,28 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.wavelet.image import SH_TEXEL_SAMPLES, WaveletImage
 from prtbench.api.cache import atomic_path
+from prtbench.api.method import load_or_precompute
+from prtbench.api.profiles import get_profile
+from prtbench.bench import metrics
 from prtbench.bench.reproduction import Figure, Stored, display_panels, provenance_line, write_csv
+from prtbench.bench.runner import device_description
+from prtbench.io.imageio import display
+from prtbench.render.reference import render_reference
+from prtbench.scene.registry import get_scene
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import geometry_mask
+from prtbench.transport.sh import eval_sh
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.cubemap import (
+    light_cubemap,
+    subsample_pattern,
+    texel_solid_angles,
+)
+from prtbench.transport.wavelet.selection import approximate
+from reproductions import plots, shared
 
 SCENE, VARIANT, LIGHT = "plants", "glossy", "city"
 CURVE_LIGHTS = ("sun", "sunset", "city")
@@ -56,15 +76,6 @@ def lighting_errors(light, n: int, *, max_bands: int, terms=CURVE_TERMS) -> list
     list of dict
         ``light``, ``basis`` ("sh", "wavelet-area", "wavelet-magnitude"), ``terms``, ``rel_l2``.
     """
-    from methods.wavelet.image import SH_TEXEL_SAMPLES
-    from prtbench.transport.sh import eval_sh
-    from prtbench.transport.wavelet import haar
-    from prtbench.transport.wavelet.cubemap import (
-        light_cubemap,
-        subsample_pattern,
-        texel_solid_angles,
-    )
-    from prtbench.transport.wavelet.selection import approximate
 
     cube = light_cubemap(light, n)  # (6, N, N, 3)
     omega = texel_solid_angles(n)[..., None]
@@ -120,16 +131,6 @@ class FigureLecture33(Figure):
 
     def measure(self, *, profile: str, results_path: Path | None, run_id: str,
                 progress: bool = True) -> dict[str, dict]:
-        from methods.wavelet.image import WaveletImage
-        from prtbench.api.method import load_or_precompute
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench import metrics
-        from prtbench.bench.runner import device_description, geometry_mask
-        from prtbench.io.imageio import display
-        from prtbench.render.reference import render_reference
-        from prtbench.scene.model import get_scene
-        from prtbench.store import measurements
-        from prtbench.transport.lights import get_light
 
         settings = SETTINGS.get(profile, SETTINGS["quick"])
         width, height = settings["image"]
@@ -186,10 +187,8 @@ class FigureLecture33(Figure):
         return {}
 
     def plot(self, stored: Stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _panels, _plots
-
         table, curve = stored.table(TABLE), stored.table(CURVE)
-        records = _panels.records(table)
+        records = shared.records(table)
         images = stored.images()
         ref_key = next(k for k in images if k.startswith("Mitsuba"))
         sh = [r for r in records if r["basis"] == "sh"]
@@ -205,14 +204,14 @@ class FigureLecture33(Figure):
                   [r["panel"] for r in wav] + [""] * (columns - len(wav)) + [""]]
         captions = [[caption(r) for r in sh] + [""] * (columns - len(sh) + 1),
                     [caption(r) for r in wav] + [""] * (columns - len(wav) + 1)]
-        png = _plots.panel_grid(reports_dir / f"figure-{self.name}.png", panels, titles=titles,
+        png = plots.panel_grid(reports_dir / f"figure-{self.name}.png", panels, titles=titles,
                                 captions=captions, row_labels=["linear SH", "non-linear\nwavelet"],
                                 title=f"{SCENE} ({VARIANT}) under {LIGHT}: masked PSNR vs path")
         curve_png = self._plot_curve(curve, reports_dir / f"figure-{self.name}-lighting.png")
         header = ["panel", "basis", "terms", "sh_bands", "psnr_masked_db", "flip_masked",
                   "frame_ms"]
         rows = [[r[h] for h in header] for r in records]
-        curve_rows = _panels.records(curve)
+        curve_rows = shared.records(curve)
         csv_path = write_csv(reports_dir / f"figure-{self.name}.csv",
                              ["kind", *header, "light", "rel_l2"],
                              [["panel", *row, LIGHT, None] for row in rows]
@@ -224,9 +223,7 @@ class FigureLecture33(Figure):
         return [png, curve_png, csv_path, md]
 
     def _plot_curve(self, curve, path: Path) -> Path:
-        from reproductions import _plots
-
-        plt = _plots._pyplot()
+        plt = plots._pyplot()
         lights = list(dict.fromkeys(curve["light"]))
         fig, axes = plt.subplots(1, len(lights), figsize=(4.2 * len(lights), 3.6), sharey=True)
         styles = {"sh": ("linear SH (n² terms)", "-", "o"),
@@ -245,7 +242,7 @@ class FigureLecture33(Figure):
         np.atleast_1d(axes)[0].set_ylabel("relative L2 error (solid-angle weighted)")
         np.atleast_1d(axes)[-1].legend(loc="lower left", fontsize=7)
         fig.tight_layout()
-        return _plots.save(fig, path)
+        return plots.save(fig, path)
 
     def _markdown(self, records, curve_rows, stored, table, curve) -> str:
         first = records[0]

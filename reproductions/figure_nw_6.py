@@ -33,7 +33,18 @@ from pathlib import Path
 
 import numpy as np
 
+from methods.neural_wavelet.data import light_coefficients
+from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
+from methods.neural_wavelet.model import NeuralWaveletModel, PixelInputs
 from prtbench.bench.reproduction import Figure, provenance_line, write_csv
+from prtbench.bench.runner import device_description
+from prtbench.store import measurements
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.selection import scores
+from prtbench.transport.wavelet.transport import compute_wavelet_transport, cosines
+from reproductions import plots, shared
 from reproductions import table_nw_common as nw
 
 TABLE = "figure-nw-6"
@@ -88,8 +99,6 @@ def gather_directions(n, r, s, glossy, m: int, rng):
 def ground_truth_transport(scene, rows: dict, *, n: int, gather: int, seed: int,
                            progress: bool = False) -> np.ndarray:
     """One-bounce Haar transport (P, 6N², 3) of the G-buffer ``rows`` (module docstring)."""
-    from prtbench.transport.raytrace import Tracer, offset_origins
-    from prtbench.transport.wavelet.transport import compute_wavelet_transport, cosines
 
     tracer = Tracer.from_scene(scene)
     positions, vnormals, faces, object_of_face = scene.merged()
@@ -175,15 +184,6 @@ class FigureNw6(Figure):
                 progress: bool = True) -> dict[str, dict]:
         import torch
 
-        from methods.neural_wavelet.data import light_coefficients
-        from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
-        from methods.neural_wavelet.model import PixelInputs
-        from prtbench.bench.runner import device_description
-        from prtbench.store import measurements
-        from prtbench.transport.lights import get_light
-        from prtbench.transport.wavelet import haar
-        from prtbench.transport.wavelet.selection import scores
-
         st = nw.setup(profile)
         config = nw.nw_config(profile)
         artifact, _ = nw.train(config, st, progress=progress)
@@ -221,7 +221,6 @@ class FigureNw6(Figure):
         nw.log("nw6", f"ground-truth transport of {len(pick)} pixels x {gather} gather rays, "
                       f"6x{n}x{n} wavelets")
         gt = ground_truth_transport(scene, rows, n=n, gather=gather, seed=SEED)
-        from methods.neural_wavelet.model import NeuralWaveletModel
 
         model = NeuralWaveletModel.from_arrays(artifact.arrays)
         inputs = PixelInputs(*(torch.as_tensor(rows[k]) for k in
@@ -269,12 +268,10 @@ class FigureNw6(Figure):
         return {}
 
     def plot(self, stored, *, reports_dir: Path) -> list[Path]:
-        from reproductions import _panels, _plots
-
         table = stored.table(TABLE)
-        recs = _panels.records(table)
+        recs = shared.records(table)
         facts = next(r for r in recs if r["panel"] == "facts")
-        plt = _plots._pyplot()
+        plt = plots._pyplot()
         fig, axes = plt.subplots(1, 3, figsize=(15.0, 4.6))
         titles = {"light": ("Lighting: energy in the top-k coefficients", "energy fraction"),
                   "transport": ("Transport: energy in its k largest (median pixel)",
@@ -299,7 +296,7 @@ class FigureNw6(Figure):
             ax.legend(fontsize="small")
         fig.suptitle(f"{self.title} ({stored.profile} profile)")
         fig.tight_layout()
-        png = _plots.save(fig, reports_dir / f"figure-{self.name}.png")
+        png = plots.save(fig, reports_dir / f"figure-{self.name}.png")
         header = ["panel", "series", "k", "value"]
         rows = [[r["panel"], r["series"], int(r["k"]), r["value"]] for r in recs
                 if r["panel"] in titles]
@@ -342,10 +339,10 @@ class FigureNw6(Figure):
             "The paper's figure is a picture (no numbers survive in our copy): it says the "
             "learnt distribution differs in shape from the ground truth while most energy sits "
             "in few entries; compare with the middle panel.", "",
-            *_panels.markdown_table(header, rows), "",
+            *shared.markdown_table(header, rows), "",
             "## Scene substitutions", "", *[f"- {s}" for s in self.substitutions],
         ]
-        md = _panels.write_caption(reports_dir / f"figure-{self.name}.md", lines)
+        md = shared.write_caption(reports_dir / f"figure-{self.name}.md", lines)
         return [png, csv_path, md]
 
 

@@ -11,6 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.bench import metrics
+from prtbench.io import imageio
+from prtbench.render.reference import render_reference
+from prtbench.transport.raytrace import geometry_mask
 
 #: Seed of the reference renders the indirect-only metrics compare against.
 EVAL_SEED = 7_777_777
@@ -27,7 +32,6 @@ def require_glossy(scene, *, what: str = "the glossy comparison") -> None:
 def indirect_reference(scene, light, view, *, width: int, height: int, spp: int,
                        bounces: int = 1) -> tuple[np.ndarray, float]:
     """(indirect (H, W, 3) float32, noise_rmse of the full render) at :data:`EVAL_SEED`."""
-    from prtbench.render.reference import render_reference
 
     full = render_reference(scene, light, view, width=width, height=height, spp=spp,
                             bounces=bounces, seed=EVAL_SEED)
@@ -40,9 +44,6 @@ def indirect_metrics(renderer, scene, light, views, *, width: int, height: int, 
                      bounces: int = 1) -> list[dict[str, float]]:
     """Metrics of ``renderer.indirect`` against :func:`indirect_reference`, one dict per view
     (plus ``noise_display``: the full render's display-noise estimate)."""
-    from prtbench.bench import metrics
-    from prtbench.bench.runner import geometry_mask
-    from prtbench.io import imageio
 
     out = []
     for view in views:
@@ -89,7 +90,6 @@ def sh_baseline(scene, *, width: int, height: int, bounces: int = 1, sh_bands: i
     """The SH transport-matrix baseline of the paper's comparisons: ``sloan-matrix`` with
     ``bounces`` (Sloan 2002 §6, glossy at the bounce) minus the same matrices without
     (:class:`DifferenceIndirect`); precomputed (and cached) on ``scene``."""
-    from prtbench.api.method import METHODS, load_or_precompute
 
     cls = METHODS.get("sloan-matrix")
     renderers = []

@@ -14,13 +14,16 @@ TPFL/TP and fragment/vertex speed-ups are given for ours and for the paper's num
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api.method import METHODS
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
+from prtbench.scene.registry import get_scene
 
 #: (paper scene, paper triangle count as printed) in the paper's row order.
 PAPER_SCENES = (("Dragon", "1.3M"), ("TRM", "441K"), ("Room", "21K"), ("Plants", "18K"))
@@ -110,10 +113,9 @@ def scene_choices(profile: str) -> tuple[SceneChoice, ...]:
 
 def ensure_texture_methods() -> None:
     """Register ``texture-tp``/``texture-tpfl`` if their entry points are not installed yet."""
-    from prtbench.api.method import METHODS
 
     if "texture-tpfl" not in METHODS.names():
-        import methods.texture  # noqa: F401 - registers itself
+        pass
 
 
 def _ratio(numerator: float, denominator: float) -> float:
@@ -132,7 +134,6 @@ def our_fps(part) -> float:
 
 def substitution_lines(profile: str, measured: set[str]) -> list[str]:
     """One line per paper scene: which of our scenes stood in for it, and the scene's own text."""
-    from prtbench.scene.model import get_scene
 
     lines = []
     for choice in scene_choices(profile):
@@ -178,12 +179,12 @@ class Table31(Reproduction):
     title = ("Table 3.1: frame rate of TP and TPFL, per vertex versus per fragment (transfer "
              "textures), glossy scenes, with error against the path reference")
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_texture_methods()
         cells = []
         for choice in scene_choices(profile):
             for _, _, method in METHOD_COLUMNS:
-                cells.append(Cell(method=method, scene=choice.scene, variant=VARIANT,
+                cells.append(Job(method=method, scene=choice.scene, variant=VARIANT,
                                   views=choice.views, scene_params=dict(choice.scene_params),
                                   overrides=choice.overrides(method),
                                   label={"paper_scene": choice.paper, "method": method}))

@@ -23,12 +23,19 @@ function of the stored row, not a measurement).
 
 from __future__ import annotations
 
+import inspect
 import json
-from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api import config as config_mod
+from prtbench.api.errors import AssetMissingError, InvalidInputError
+from prtbench.api.method import METHODS
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
+from prtbench.render import gl
+from prtbench.render.prt_shading import gamma_buffer_data, tpfl_buffer_data
+from prtbench.scene.registry import SCENES, get_scene
 from reproductions.table_3_1 import (
     PAPER_SCENES,
     VARIANT,
@@ -62,7 +69,6 @@ PAPER_TEXELS = 1024 * 1024
 def gamma_bytes(bands: int) -> int:
     """Bytes of the sparse Γ list the TP shaders read (8 per non-zero: index word + float),
     as :mod:`prtbench.render.prt_shading` uploads it."""
-    from prtbench.render.prt_shading import gamma_buffer_data
 
     return len(gamma_buffer_data(bands))
 
@@ -70,7 +76,6 @@ def gamma_bytes(bands: int) -> int:
 def tpfl_bytes(bands: int) -> int:
     """Bytes of the fixed-light matrix M (n² × n² RGB entries) as :mod:`prtbench.render.prt_shading`
     uploads it (its std140 layout pads each entry to a vec4: n⁴·16 bytes)."""
-    from prtbench.render.prt_shading import tpfl_buffer_data
 
     return len(tpfl_buffer_data(np.zeros((bands * bands, 3)), bands))
 
@@ -115,7 +120,6 @@ SCENE_TABLE = "table-3.2-scenes"
 
 def gl_storage_block_limit() -> int:
     """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of this machine's GL context (0 if unknown)."""
-    from prtbench.render import gl
 
     return gl.storage_block_limit()
 
@@ -135,8 +139,6 @@ def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
     Checks the GL shader-storage block limit (``limit``; default this machine's), then the
     method's own validate (its ``max_bytes`` knob).
     """
-    from prtbench.api.errors import InvalidInputError
-    from prtbench.api.method import METHODS
 
     # The limit first: the method's validate checks the live GL too, and a report rebuilt
     # from the store must quote the limit its sweep ran under.
@@ -154,8 +156,6 @@ def sloan_refusal(scene, config, *, limit: int | None = None) -> str | None:
 
 def _default_config(method: str, profile: str, paper_scene: str) -> dict:
     """The config ``method`` would have had in this sweep, as a dict (for rows not run)."""
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS
 
     choice = {c.paper: c for c in scene_choices(profile)}.get(paper_scene)
     overrides = choice.overrides(method) if choice is not None else {}
@@ -168,9 +168,6 @@ def _scene_of(row):
     A scene may record parameters its builder does not take (``dragon-lo`` records its fixed
     ``resolution``); only the builder's keyword parameters are passed back.
     """
-    import inspect
-
-    from prtbench.scene.model import SCENES, get_scene
 
     accepted = inspect.signature(SCENES.get(row["scene"])).parameters
     params = {k: v for k, v in json.loads(row["scene_params"]).items() if k in accepted}
@@ -181,8 +178,6 @@ def paper_scene_notes(profile: str, measured: set[str], *, limit: int) -> list[s
     """Closed forms of the vertex schemes on the paper profile's scenes, where this profile
     measured a lighter stand-in (e.g. ``dragon-lo`` for ``dragon`` in ``quick``); ``limit`` is
     the stored GL shader-storage block limit."""
-    from prtbench.api.errors import AssetMissingError
-    from prtbench.scene.model import get_scene
 
     paper = {c.paper: c for c in scene_choices("paper")}
     notes = []
@@ -219,10 +214,7 @@ class Table32(Reproduction):
     title = ("Table 3.2: memory of glossy transfer at vertices (Sloan, Ng et al.) and in "
              "textures (McKenzie, ours), measured and in closed form")
 
-    def cells(self, profile: str) -> list[Cell]:
-        from prtbench.api.method import METHODS
-        from prtbench.scene.model import get_scene
-
+    def cells(self, profile: str) -> list[Job]:
         ensure_texture_methods()
         cells = []
         for choice in scene_choices(profile):
@@ -234,7 +226,7 @@ class Table32(Reproduction):
                     scene = get_scene(choice.scene, variant=VARIANT, **choice.scene_params)
                     if sloan_refusal(scene, config):
                         continue  # reported in closed form by format()
-                cells.append(Cell(method=method, scene=choice.scene, variant=VARIANT, views=1,
+                cells.append(Job(method=method, scene=choice.scene, variant=VARIANT, views=1,
                                   scene_params=dict(choice.scene_params),
                                   overrides=choice.overrides(method),
                                   label={"paper_scene": choice.paper, "scheme": key}))
@@ -246,7 +238,6 @@ class Table32(Reproduction):
         """This GL's shader-storage block limit, which the notes and refusals quote, and the
         object count of each run's scene, which the closed forms use (the vertex count is a
         column of every result row)."""
-        from prtbench.render import gl
 
         scenes = []
         for run_id, run in frame.groupby("run_id", sort=False):
@@ -282,8 +273,6 @@ class Table32(Reproduction):
         return super().markdown(header, rows, profile=profile, frame=frame)
 
     def format(self, frame, *, profile: str):
-        from prtbench.api.method import METHODS
-
         ensure_texture_methods()
         header = ["scene", "our scene", "our vertices", "our tris", "scheme", "method",
                   "measured bytes", "measured MiB", "closed form bytes", "closed form MiB",

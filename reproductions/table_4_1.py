@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api.method import METHODS
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
 
 SCENES = ("teaset", "plants", "bust", "dining-table")
 WIDTHS = (64, 128)
@@ -43,17 +45,15 @@ PAPER = {
 
 def ensure_methods() -> None:
     """Register ``learnt`` and the texture baseline if their entry points are not installed."""
-    from prtbench.api.method import METHODS
 
     if "learnt" not in METHODS.names():
-        import methods.learnt  # noqa: F401 - registers itself
+        pass
     if BASELINE not in METHODS.names():
-        import methods.texture  # noqa: F401 - registers itself
+        pass
 
 
 def baseline_bands(profile: str) -> int:
     """SH bands of the baseline as the runner builds it (its profile default)."""
-    from prtbench.api.method import METHODS
 
     ensure_methods()
     return int(METHODS.get(BASELINE).make_config(profile=profile).sh_bands)
@@ -108,19 +108,19 @@ class Table41(Reproduction):
             "epochs).",
         )
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_methods()
         cells = []
         for variant in VARIANTS:
             for scene in SCENES:
                 for k in WIDTHS:
                     for reference in (f"method:{BASELINE}", "path"):
-                        cells.append(Cell(
+                        cells.append(Job(
                             method="learnt", scene=scene, variant=variant,
                             overrides=learnt_overrides(k, profile), reference=reference,
                             label={"variant": variant, "scene": scene, "k": k,
                                    "reference": reference}))
-                cells.append(Cell(method=BASELINE, scene=scene, variant=variant, reference="path",
+                cells.append(Job(method=BASELINE, scene=scene, variant=variant, reference="path",
                                   label={"variant": variant, "scene": scene, "k": 0,
                                          "reference": "path"}))
         return cells

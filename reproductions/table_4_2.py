@@ -15,7 +15,9 @@ import math
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api.method import METHODS
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
 
 SCENES = ("sdf-car", "sdf-monster", "sdf-fish", "sdf-rabbit")
 SCENE_LABELS = {"sdf-car": "OLD-CAR", "sdf-monster": "MIKE-MONSTER", "sdf-fish": "FISH",
@@ -46,10 +48,9 @@ MC_RESOLUTION = {"smoke": 96, "quick": 256, "paper": 256}
 
 def ensure_method() -> None:
     """Register ``learnt-sdf`` if its entry point is not installed yet."""
-    from prtbench.api.method import METHODS
 
     if "learnt-sdf" not in METHODS.names():
-        import methods.learnt.sdf  # noqa: F401 - registers itself
+        pass
 
 
 def learnt_sdf_overrides(k: int) -> dict:
@@ -121,9 +122,9 @@ class Table42(Reproduction):
             TRAINING_NOTE,
         )
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_method()
-        return [Cell(method="learnt-sdf", scene=scene, variant=variant,
+        return [Job(method="learnt-sdf", scene=scene, variant=variant,
                      overrides=learnt_sdf_overrides(k), views=VIEWS.get(profile),
                      scene_params={"mc_resolution": MC_RESOLUTION.get(profile, 256)},
                      label={"scene": scene, "variant": variant, "k": k})

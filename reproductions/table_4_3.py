@@ -12,7 +12,8 @@ Entry point: ``"4.3" = "reproductions.table_4_3:TABLE"``.
 
 from __future__ import annotations
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
 from reproductions.table_4_2 import (
     MC_RESOLUTION,
     TIMING_NOTE,
@@ -67,9 +68,9 @@ class Table43(Reproduction):
             TRAINING_NOTE,
         )
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_method()
-        return [Cell(method="learnt-sdf", scene=SCENE, variant=variant,
+        return [Job(method="learnt-sdf", scene=SCENE, variant=variant,
                      overrides=learnt_sdf_overrides(k), views=VIEWS.get(profile),
                      scene_params={"size": size, "mc_resolution": MC_RESOLUTION.get(profile, 256)},
                      label={"size": size, "variant": variant, "k": k})

@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from methods.learnt.glsl import hardcoded_floats
+from methods.learnt.method import LearntTransfer
+from methods.learnt.model import spec_of
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
 from reproductions.table_4_1 import baseline_bands, ensure_methods
 
 WIDTHS = (64, 128, 256, 512)
@@ -34,9 +38,6 @@ def overrides(k: int, renderer: str, profile: str) -> dict:
 
 def glsl_refusal(k: int, profile: str) -> str | None:
     """Why the GLSL path refuses width ``k`` (None when it renders it)."""
-    from methods.learnt.glsl import hardcoded_floats
-    from methods.learnt.method import LearntTransfer
-    from methods.learnt.model import spec_of
 
     config = LearntTransfer.make_config(overrides(k, "glsl", profile), profile=profile)
     count = hardcoded_floats(spec_of(config), 1)
@@ -68,14 +69,14 @@ class Table44(Reproduction):
         "networks.",
     )
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         ensure_methods()
         cells = []
         for renderer in RENDERERS:
             for k in WIDTHS:
                 if renderer == "glsl" and glsl_refusal(k, profile):
                     continue
-                cells.append(Cell(method="learnt", scene=SCENE, variant=VARIANT,
+                cells.append(Job(method="learnt", scene=SCENE, variant=VARIANT,
                                   overrides=overrides(k, renderer, profile), reference="path",
                                   label={"renderer": renderer, "k": k}))
         return cells

@@ -29,7 +29,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api import config as config_mod
+from prtbench.api.errors import UnknownNameError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
+from prtbench.scene.registry import get_scene
+from prtbench.transport.compress import knobs
+from prtbench.transport.wavelet.sparse import SparseTransport
 
 CLUSTERS = (1, 16, 64, 256)
 PCA_VECTORS = (0, 1, 2, 4, 8, 16)
@@ -87,10 +94,6 @@ def form_facts(rows) -> dict:
         ``transfer_bytes`` (stored form / uncompressed float32 transfer), ``fit_s`` and
         ``iterations`` (NaN uncompressed).
     """
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS, load_or_precompute
-    from prtbench.scene.model import get_scene
-    from prtbench.transport.compress import knobs
 
     first = rows.iloc[0]
     scene = get_scene(first["scene"], variant=first["scene_variant"],
@@ -106,7 +109,6 @@ def form_facts(rows) -> dict:
                 "transfer_bytes": int(meta["uncompressed_bytes"]),
                 "fit_s": float(meta["fit_s"]), "iterations": int(meta["iterations"])}
     if "dense_float32_bytes" in meta:  # a sparse wavelet transport: against its dense rows
-        from prtbench.transport.wavelet.sparse import SparseTransport
 
         t = SparseTransport.from_arrays(artifact.arrays)
         values = t.values.astype(np.float64) * (1.0 if t.scale is None
@@ -160,29 +162,28 @@ class CpcaTable(Reproduction):
         known = [case[0] for case in OPTIONAL_CASES]
         unknown = [name for name in optional if name not in known]
         if unknown:
-            from prtbench.api.errors import UnknownNameError
 
             raise UnknownNameError("optional table-cpca case", unknown[0], known)
         self.optional = tuple(optional)
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         smoke = profile == "smoke"
         cases = SMOKE_CASES if smoke else CASES
         clusters = SMOKE_CLUSTERS if smoke else CLUSTERS
         vectors = SMOKE_PCA_VECTORS if smoke else PCA_VECTORS
         cells = []
         for label, method, scene, variant, params, base in cases:
-            cells.append(Cell(method=method, scene=scene, variant=variant, light=LIGHT,
+            cells.append(Job(method=method, scene=scene, variant=variant, light=LIGHT,
                               scene_params=params, overrides=dict(base),
                               label={"case": label, "K": 0, "n": -1}))
             for k in clusters:
-                cells += [Cell(method=method, scene=scene, variant=variant, light=LIGHT,
+                cells += [Job(method=method, scene=scene, variant=variant, light=LIGHT,
                                scene_params=params, overrides={**base, **form_overrides(k, n)},
                                label={"case": label, "K": k, "n": n}) for n in vectors]
         for label, method, scene, variant, params, base in OPTIONAL_CASES:
             if label not in self.optional or profile != "quick":
                 continue
-            cells += [Cell(method=method, scene=scene, variant=variant, light=LIGHT,
+            cells += [Job(method=method, scene=scene, variant=variant, light=LIGHT,
                            scene_params=params,
                            overrides={**base, **(form_overrides(k, n) if k else {})},
                            label={"case": label, "K": k, "n": n})

@@ -21,9 +21,16 @@ import json
 import uuid
 from dataclasses import asdict
 
-import numpy as np
-
+from methods.data_driven.evaluation import held_out, with_knobs
+from methods.data_driven.method import DataDrivenPRT
+from prtbench.api.config import to_dict
+from prtbench.api.errors import AssetMissingError
+from prtbench.api.method import load_or_precompute
+from prtbench.api.profiles import get_profile
 from prtbench.bench.reproduction import Reproduction
+from prtbench.bench.runner import device_description
+from prtbench.scene.registry import get_scene
+from prtbench.store.results import ResultRow, ResultsStore, git_sha
 
 BASIS_COUNTS = (4, 16, 64)
 #: Interleaved samples per pass at least (wall-clock timings on a shared CPU are noisy).
@@ -84,16 +91,6 @@ class DdprtTable1(Reproduction):
 
     def measure(self, profile: str, *, results_path=None) -> list[str]:
         """Time every (scene, n) and append the rows to the results store; returns the run id."""
-        import methods.data_driven  # noqa: F401 - registers the method
-        from methods.data_driven.evaluation import held_out, with_knobs
-        from methods.data_driven.method import DataDrivenPRT
-        from prtbench.api.config import to_dict
-        from prtbench.api.errors import AssetMissingError
-        from prtbench.api.method import load_or_precompute
-        from prtbench.api.profiles import get_profile
-        from prtbench.bench.runner import device_description
-        from prtbench.scene.model import get_scene
-        from prtbench.store.results import ResultRow, ResultsStore, git_sha
 
         prof = get_profile(profile)
         run_id = f"ddprt1-{uuid.uuid4().hex[:8]}"

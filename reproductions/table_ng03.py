@@ -18,7 +18,11 @@ import json
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api import config as config_mod
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
+from prtbench.scene.registry import get_scene
 
 #: Scenes with the tessellation the vertex methods need to hold a shadow at all.
 SCENE_PARAMS = {"plants": {"ground_subdivisions": 32}, "room": {},
@@ -50,9 +54,6 @@ def transport_bytes(rows) -> dict:
     Wavelet artifacts record both (``dense_float32_bytes``, ``stored_bytes``); an SH
     artifact's transfer is stored dense, so both are its array bytes.
     """
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS, load_or_precompute
-    from prtbench.scene.model import get_scene
 
     first = rows.iloc[0]
     scene = get_scene(first["scene"], variant=first["scene_variant"],
@@ -94,15 +95,13 @@ class TableNg03(Reproduction):
             "No paper numbers: the Ng 2003 text is not among this project's sources.",
         )
 
-    def cells(self, profile: str) -> list[Cell]:
-        from prtbench.api.method import METHODS
-
+    def cells(self, profile: str) -> list[Job]:
         for name, module in (("wavelet-vertex", "methods.wavelet.vertex"),
                              ("wavelet-texture", "methods.wavelet.texture")):
             if name not in METHODS.names():
                 __import__(module)
         scenes, lights = SETS.get(profile, SETS["quick"])
-        return [Cell(method=method, scene=scene, light=light, overrides=dict(overrides),
+        return [Job(method=method, scene=scene, light=light, overrides=dict(overrides),
                      scene_params=SCENE_PARAMS[scene], views=1,
                      label={"scene": scene, "light": light, "config": label})
                 for scene in scenes for light in lights for label, method, overrides in CONFIGS]

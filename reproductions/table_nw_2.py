@@ -19,6 +19,7 @@ Entry point: ``"nw-2" = "reproductions.table_nw_2:TABLE"``.
 from __future__ import annotations
 
 from prtbench.bench.reproduction import Reproduction
+from prtbench.transport.lights import get_light
 from reproductions import table_nw_common as nw
 
 TERMS = (32, 64, 128)
@@ -55,8 +56,6 @@ class TableNw2(Reproduction):
         )
 
     def measure(self, profile: str, *, results_path=None) -> list[str]:
-        from prtbench.transport.lights import get_light
-
         st = nw.setup(profile)
         writer = nw.RowWriter(profile, "nw2")
         cls = nw.nw_class()

@@ -43,7 +43,25 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from methods.neural_wavelet.method import DIRECT_SEED
+from methods.vertex.glossy import matrix_bytes, matrix_channels
+from prtbench.api import config as config_mod
+from prtbench.api import strict_json
+from prtbench.api.errors import InvalidInputError
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.api.profiles import get_profile
+from prtbench.bench import metrics
 from prtbench.bench.reproduction import Reproduction
+from prtbench.bench.runner import device_description, load_average
+from prtbench.io import imageio
+from prtbench.render import gl
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import Trajectory, View
+from prtbench.scene.registry import get_scene
+from prtbench.store.results import ResultRow, ResultsStore, git_sha
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import geometry_mask
+from reproductions.nw_evaluate import EVAL_SEED, require_glossy
 
 #: Per profile: scene, builder parameters, views per view set, held-out lights used, SH
 #: baseline knobs. ``smoke`` runs in seconds on a procedural scene (no assets); ``quick`` is
@@ -80,18 +98,14 @@ class Setup:
 
 
 def nw_class():
-    from prtbench.api.method import METHODS
-
     if "neural-wavelet" not in METHODS.names():
-        import methods.neural_wavelet.method  # noqa: F401  (registers without a reinstall)
+        pass
     return METHODS.get("neural-wavelet")
 
 
 def sloan_class():
-    from prtbench.api.method import METHODS
-
     if "sloan-matrix" not in METHODS.names():
-        import methods.vertex.glossy  # noqa: F401
+        pass
     return METHODS.get("sloan-matrix")
 
 
@@ -103,7 +117,6 @@ def nw_config(profile: str, **overrides):
 def far_views(scene, n: int):
     """A held-out trajectory for a scene without one: each view turned half a step about +Y
     around its target, raised by 15° and moved 1.3 × further out."""
-    from prtbench.scene.model import Trajectory, View
 
     views = scene.trajectory.views
     step = 360.0 / max(len(views), 1)
@@ -124,9 +137,6 @@ def far_views(scene, n: int):
 
 def setup(profile: str) -> Setup:
     """The training scene, the far/near evaluation scenes and held-out lights of ``profile``."""
-    from prtbench.api.profiles import get_profile
-    from prtbench.scene.model import get_scene
-    from reproductions.nw_evaluate import require_glossy
 
     prof = get_profile(profile)
     spec = SETUPS[profile]
@@ -167,10 +177,6 @@ class References:
         self.st, self.bounces, self.direct_spp = st, int(bounces), int(direct_spp)
 
     def get(self, scene, light, view):
-        from methods.neural_wavelet.method import DIRECT_SEED
-        from prtbench.render.reference import render_reference
-        from reproductions.nw_evaluate import EVAL_SEED
-
         kw = dict(width=self.st.width, height=self.st.height)
         full = render_reference(scene, light, view, spp=self.st.reference_spp,
                                 bounces=self.bounces, seed=EVAL_SEED, **kw)
@@ -183,9 +189,6 @@ class References:
 
 def image_metrics(scene, view, *, full, indirect, ref_full, ref_indirect, width, height):
     """Full-image metrics and ``indirect_``-prefixed indirect-only ones (masked and not)."""
-    from prtbench.bench import metrics
-    from prtbench.bench.runner import geometry_mask
-    from prtbench.io import imageio
 
     mask = geometry_mask(scene, view, width, height)
 
@@ -212,9 +215,6 @@ class RowWriter:
     """Builds the results-store rows of one reproduction run (one run id)."""
 
     def __init__(self, profile: str, tag: str):
-        from prtbench.bench.runner import device_description
-        from prtbench.store.results import git_sha
-
         self.profile, self.tag = profile, tag
         self.run_id = f"{tag}-{uuid.uuid4().hex[:8]}"
         self.sha, self.device = git_sha(), device_description()
@@ -223,10 +223,6 @@ class RowWriter:
     def add(self, *, method: str, config, scene, light: str, view_index: int, view, label: dict,
             metrics: dict, width: int, height: int, memory_bytes, precompute_s, renderer: str,
             reference=None, frame=None, covered=None) -> None:
-        from prtbench.api import config as config_mod
-        from prtbench.api import strict_json
-        from prtbench.bench.runner import load_average
-        from prtbench.store.results import ResultRow
 
         nulls = strict_json.non_finite_keys(metrics)
         self.rows.append(ResultRow(
@@ -247,8 +243,6 @@ class RowWriter:
             load_average=load_average()))
 
     def store(self, results_path) -> list[str]:
-        from prtbench.store.results import ResultsStore
-
         ResultsStore(results_path).append(self.rows)
         return [self.run_id]
 
@@ -268,8 +262,6 @@ def measure_nw(writer: RowWriter, st: Setup, config, label: dict, *, view_sets=V
         renderer = cls.renderer(scene, artifact, config, width=st.width, height=st.height)
         try:
             for light_name in st.lights:
-                from prtbench.transport.lights import get_light
-
                 light = get_light(light_name)
                 for index, view in enumerate(scene.trajectory.views):
                     ref, ref_indirect, _ = refs.get(scene, light, view)
@@ -307,11 +299,8 @@ def check_sloan(st: Setup, *, bounces: int) -> None:
     this GL's shader-storage block limit (named with the profile, before the method's own
     validate checks it in its terms), then its validate (``max_bytes``); InvalidInputError,
     exit 2."""
-    from prtbench.api.errors import InvalidInputError
-    from prtbench.render import gl
 
     cls = sloan_class()  # registers methods.vertex.glossy
-    from methods.vertex.glossy import matrix_bytes, matrix_channels
 
     limit = gl.storage_block_limit()
     for b in (bounces, 0):
@@ -332,8 +321,6 @@ def measure_sloan(writer: RowWriter, st: Setup, label: dict, *, bounces: int, di
                   view_sets=VIEW_SETS, progress: bool = True) -> None:
     """The SH baseline: ``sloan-matrix`` with ``bounces`` minus its ``bounces=0`` render is its
     indirect; its full image is that + the neural rows' direct image (same call, cached)."""
-    from prtbench.api.method import load_or_precompute
-    from prtbench.transport.lights import get_light
 
     cls = sloan_class()
     configs = {b: sloan_config(st.profile, bounces=b) for b in (bounces, 0)}

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
 
 #: Ground subdivisions k give 2·k² ground triangles: 2, 128, 8192, 524288.
 GROUND_SUBDIVISIONS = (1, 8, 64, 512)
@@ -36,8 +37,8 @@ class TessellationTable(Reproduction):
         "sky's sun, not by vertex spacing: more tessellation no longer helps.",
     )
 
-    def cells(self, profile: str) -> list[Cell]:
-        return [Cell(method="vertex", scene="plants", variant="diffuse",
+    def cells(self, profile: str) -> list[Job]:
+        return [Job(method="vertex", scene="plants", variant="diffuse",
                      scene_params={"ground_subdivisions": k}, label={"ground_tris": 2 * k * k})
                 for k in GROUND_SUBDIVISIONS]
 

@@ -24,7 +24,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prtbench.bench.reproduction import Cell, Reproduction
+from prtbench.api import config as config_mod
+from prtbench.api.method import METHODS, load_or_precompute
+from prtbench.bench import metrics
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import Reproduction
+from prtbench.io import imageio
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import View
+from prtbench.scene.registry import get_scene
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer
 
 #: Probes per axis of the sweep.
 RESOLUTIONS = (4, 8, 16, 32)
@@ -41,9 +51,6 @@ LEAK_TABLE = "table-volume-leak"
 
 
 def _registered_methods() -> list[str]:
-    import methods.irradiance_volume.method  # noqa: F401 - registers itself before the entry point exists
-    from prtbench.api.method import METHODS
-
     return [m for m in BASELINES if m in METHODS]
 
 
@@ -65,7 +72,6 @@ def leak_masks(scene, view, width: int, height: int, *, tracer=None) -> dict[str
         rug whose (x, z) lies inside the table object's footprint and below its top;
         ``"leak"``: their union. All False for scenes without such objects.
     """
-    from prtbench.transport.raytrace import Tracer
 
     tracer = tracer or Tracer.from_scene(scene)
     origins, dirs = view.primary_rays(width, height)
@@ -98,14 +104,6 @@ def leak_mae(rows) -> float:
         Result rows of one run (one method, config, scene, light), one per view, as loaded by
         :func:`prtbench.store.results.load`. Rows against a ``method:`` reference give NaN.
     """
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS, load_or_precompute
-    from prtbench.bench import metrics
-    from prtbench.io import imageio
-    from prtbench.render.reference import render_reference
-    from prtbench.scene.model import View, get_scene
-    from prtbench.transport.lights import get_light
-    from prtbench.transport.raytrace import Tracer
 
     first = rows.iloc[0]
     if first["reference_kind"] != "path":
@@ -178,13 +176,13 @@ class VolumeTable(Reproduction):
             *([f"Not registered in this build, so not shown: {', '.join(missing)}."] if missing else []),
         )
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         cells = []
         for scene in SCENE_NAMES:
-            cells += [Cell(method="irradiance-volume", scene=scene, overrides={"resolution": n},
+            cells += [Job(method="irradiance-volume", scene=scene, overrides={"resolution": n},
                            label={"scene": scene, "method": "irradiance-volume", "N": n})
                       for n in RESOLUTIONS]
-            cells += [Cell(method=m, scene=scene, label={"scene": scene, "method": m, "N": 0})
+            cells += [Job(method=m, scene=scene, label={"scene": scene, "method": m, "N": 0})
                       for m in _registered_methods()]
         return cells
 

@@ -20,7 +20,8 @@ from __future__ import annotations
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, register_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory
+from prtbench.scene.registry import register_scene
 from scenes.primitives import uv_sphere
 
 GROUND = {

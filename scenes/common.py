@@ -9,6 +9,8 @@ import numpy as np
 
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.io.assets import ASSETS, asset_path
+from prtbench.io.meshio import read_mesh
 from prtbench.scene.geometry import (
     degenerate_faces,
     fill_holes,
@@ -68,7 +70,6 @@ def asset_mesh(asset: str, member: str, *, height: float,
     area-weighted vertex normals. The result is cached by the asset's pinned hash and these
     parameters.
     """
-    from prtbench.io.assets import ASSETS, asset_path
 
     path = asset_path(asset, member)
     basis = np.eye(3) if object_from_file is None else np.asarray(object_from_file, float)
@@ -76,8 +77,6 @@ def asset_mesh(asset: str, member: str, *, height: float,
                       height, basis, rotate_y_degrees, list(position), close_holes)
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.io.meshio import read_mesh
-
         positions, faces = read_mesh(path)
         positions, faces = weld_vertices(positions @ basis.T, faces)
         faces = faces[~degenerate_faces(positions, faces)]

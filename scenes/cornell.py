@@ -13,7 +13,8 @@ import math
 import numpy as np
 
 from prtbench.scene import params as P
-from prtbench.scene.model import Scene, SceneObject, TriangleMesh, register_scene
+from prtbench.scene.model import Scene, SceneObject, TriangleMesh
+from prtbench.scene.registry import register_scene
 from scenes.common import assemble, check_variant, material
 from scenes.primitives import box, merge, rotate_y, transformed, translate
 

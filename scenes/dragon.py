@@ -11,7 +11,8 @@ from __future__ import annotations
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Scene, SceneObject, register_scene
+from prtbench.scene.model import Scene, SceneObject
+from prtbench.scene.registry import register_scene
 from scenes.common import assemble, asset_mesh, check_variant, material
 
 FILES = {"full": "dragon_vrip.ply.gz", "res2": "dragon_vrip_res2.ply.gz",

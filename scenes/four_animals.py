@@ -24,7 +24,8 @@ import math
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View, register_scene
+from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, View
+from prtbench.scene.registry import register_scene
 from scenes.common import asset_mesh, check_variant, material
 from scenes.lion import lion_mesh
 from scenes.primitives import rotate_y, torus, transformed, translate

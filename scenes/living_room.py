@@ -16,7 +16,8 @@ import numpy as np
 
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Scene, SceneObject, register_scene
+from prtbench.scene.model import Scene, SceneObject
+from prtbench.scene.registry import register_scene
 from scenes.common import assemble, check_variant, material
 from scenes.primitives import box, lathe, merge, rotate_y, transformed, translate
 

@@ -12,11 +12,14 @@ N = +y; the map stores (n_T, n_B, n_N)·0.5 + 0.5.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Scene, SceneObject, Texture, register_scene
+from prtbench.scene.model import Scene, SceneObject, Texture
+from prtbench.scene.registry import register_scene
 from scenes.common import assemble, check_variant, material
 from scenes.primitives import box, lathe, merge, tube, uv_sphere
 
@@ -145,7 +148,6 @@ def build(*, variant: str = "diffuse", floor_subdivisions: int = 1,
     half = FLOOR_SIZE / 2
     floor_material = material(variant, "floor", (0.55, 0.38, 0.22), ks=0.25, shininess=64.0)
     if normal_mapped_floor:
-        from dataclasses import replace
         floor_material = replace(floor_material, normal_map=tile_normal_map())
     wall = material(variant, "wall", (0.78, 0.76, 0.70))
     table_y, table_at = 0.75, np.array([0.0, 0.0, -0.4])

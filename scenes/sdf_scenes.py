@@ -22,7 +22,10 @@ from typing import Any
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
-from prtbench.scene.model import Material, Scene, register_scene
+from prtbench.scene.model import Material, Scene
+from prtbench.scene.registry import register_scene
+from prtbench.transport.neural_sdf import SIZES
+from prtbench.transport.neural_sdf_fit import fit_neural_sdf
 from prtbench.transport.sdf import (
     Box,
     Capsule,
@@ -41,7 +44,7 @@ from prtbench.transport.sdf import (
     subtract,
     union,
 )
-from scenes.common import assemble, check_variant, material
+from scenes.common import assemble, asset_mesh, check_variant, material
 
 #: Default marching-cubes resolution (cells along the 4-unit side of the box: 1.6 cm cells).
 MC_RESOLUTION = 256
@@ -353,7 +356,7 @@ def build_bunny_neural(*, variant: str = "diffuse", size: str = "small",
     """The Stanford bunny as a neural SDF on the ground (thesis STANFORD-BUNNY, table 4.3).
 
     The CGAL bunny (Debian ``libcgal-demo``, needs ``prtbench assets fetch cgal-meshes``) is
-    fitted by a small sine MLP (:func:`prtbench.transport.neural_sdf.fit_neural_sdf`: ~0.5–1 min on two
+    fitted by a small sine MLP (:func:`prtbench.transport.neural_sdf_fit.fit_neural_sdf`: ~0.5–1 min on two
     CPU cores the first time, then cached); the scene's SDF is that network united with the
     ground plane, and its objects the marching-cubes mesh of the network.
 
@@ -367,8 +370,6 @@ def build_bunny_neural(*, variant: str = "diffuse", size: str = "small",
     seed : int
         Seed of the network's initialisation and training batches.
     """
-    from prtbench.transport.neural_sdf import SIZES, fit_neural_sdf
-    from scenes.common import asset_mesh
 
     check_variant(variant)
     if size not in SIZES:

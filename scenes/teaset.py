@@ -11,7 +11,8 @@ import math
 
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Scene, SceneObject, register_scene
+from prtbench.scene.model import Scene, SceneObject
+from prtbench.scene.registry import register_scene
 from scenes.common import assemble, asset_mesh, check_variant, material
 from scenes.primitives import box, lathe, merge, rotate_y, rotate_z, torus, transformed, translate
 

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
-from prtbench.scene.model import Scene, SceneObject, register_scene
+from prtbench.scene.model import Scene, SceneObject
+from prtbench.scene.registry import register_scene
 from scenes.bust import RESOLUTIONS, bust_mesh
 from scenes.common import assemble, asset_mesh, check_variant, material
 

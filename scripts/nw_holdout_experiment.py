@@ -64,8 +64,8 @@ from test_neural_wavelet import (  # noqa: E402
 import methods.neural_wavelet.method  # noqa: E402,F401
 import prtbench  # noqa: E402
 from prtbench.api.method import METHODS, load_or_precompute  # noqa: E402
-from prtbench.scene.model import get_scene  # noqa: E402
-from prtbench.transport.lights import get_light  # noqa: E402
+from prtbench.scene.registry import get_scene  # noqa: E402
+from prtbench.transport.lights import get_light# noqa: E402
 from reproductions.nw_evaluate import indirect_metrics, sh_baseline  # noqa: E402
 
 #: The test's evaluation size and reference samples (NW_EVAL_SPP overrides the latter).

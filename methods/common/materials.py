@@ -35,3 +35,19 @@ def check_diffuse_constant_kd(method: str, scene, *, kd_only: bool = False,
             raise InvalidInputError(
                 f"method '{method}' takes constant kd per object; '{obj.name}' in scene "
                 f"'{scene.name}' is textured")
+
+
+def validate_constant_materials(method: str, scene) -> None:
+    """Refuse textured materials and normal maps: ``method`` shades per vertex with constant kd,
+    ks and shininess per object."""
+    for obj in scene.objects:
+        material = obj.material
+        if material.is_textured:
+            raise InvalidInputError(
+                f"method '{method}' takes constant kd, ks and shininess per object; '{obj.name}' "
+                f"in scene '{scene.name}' is textured; use a transfer-texture method")
+        if material.normal_map is not None:
+            raise InvalidInputError(
+                f"method '{method}' shades per vertex and cannot apply the normal map of "
+                f"'{obj.name}' in scene '{scene.name}'; use a transfer-texture method or a scene "
+                "without normal maps")

@@ -16,7 +16,7 @@ inside the texel, so the estimate is unbiased for Mitsuba's bilinear ``envmap``)
 with ``max_depth = k + 2`` minus its ``max_depth = 2`` image (the test checks this).
 
 First-bounce directions are the stratified, per-texel rotated patterns of
-:class:`prtbench.transport.transfer.RayPattern`; later bounces use independent cosine samples.
+:class:`prtbench.transport.ray_pattern.RayPattern`; later bounces use independent cosine samples.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from methods.data_driven.lights import (
     is_environment,
 )
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.ray_pattern import RayPattern, cosine_hemisphere, tangent_frames
 from prtbench.transport.raytrace import Tracer, offset_origins
 
 #: Rays per embree batch in the bake (bounds temporary memory to ~100 MB).
@@ -185,8 +186,6 @@ class DirectLight:
 
 
 def _cosine_directions(normals: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    from prtbench.transport.transfer import cosine_hemisphere, tangent_frames
-
     local = cosine_hemisphere(rng.random((len(normals), 2)))
     frames = tangent_frames(normals, rng.random(len(normals)) * 2.0 * np.pi)
     return np.einsum("nk,nkj->nj", local, frames)
@@ -220,7 +219,6 @@ def bake_indirect(tracer: Tracer, face_albedo: np.ndarray, points: np.ndarray,
         Shadow rays per path vertex for environment maps.
     seed : int
     """
-    from prtbench.transport.transfer import RayPattern
 
     if bounces < 1 or paths < 1:
         raise InvalidInputError(f"bake bounces={bounces}, paths={paths}; accepted: both >= 1")

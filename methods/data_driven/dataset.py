@@ -19,12 +19,19 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from methods.data_driven.bake import bake_indirect, object_albedo
 from methods.data_driven.families import sample_family
 from methods.data_driven.lightmap import Lightmap, build_lightmap
 from methods.data_driven.measurement import MeasurementPoints, measurement_points
+from methods.data_driven.runtime import DirectLighting, FakeGBuffer
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.config import to_dict
+from prtbench.render import gl
+from prtbench.transport.lights import get_light
+from prtbench.transport.parallel import map_chunks
+from prtbench.transport.raytrace import Tracer
 
 #: Bump when the dataset for the same knobs changes.
 DATASET_VERSION = 4
@@ -69,7 +76,6 @@ def family_environment(scene: Any, config: Any):
     """The environment map an ``env-rotations`` family rotates (None for other families)."""
     if config.light_family != "env-rotations":
         return None
-    from prtbench.transport.lights import get_light
 
     return get_light(config.environment or scene.default_light)
 
@@ -98,9 +104,6 @@ class DirectRenderer:
     """The runtime's direct-light passes without a basis: measures x for any light."""
 
     def __init__(self, scene: Any, points: MeasurementPoints, config: Any):
-        from methods.data_driven.runtime import DirectLighting, FakeGBuffer
-        from prtbench.render import gl
-
         ctx = gl.create_context()
         positions, _, faces, _ = scene.merged()
         lo, hi = scene.bounds()
@@ -134,15 +137,10 @@ def measure_direct(scene: Any, points: MeasurementPoints, config: Any, lights: l
 def bake_lightmaps(scene: Any, lightmap: Lightmap, lights: list, *, bounces: int, paths: int,
                    env_samples: int, seed: int, progress: bool = False) -> np.ndarray:
     """(len(lights), T, 3) path-traced indirect lightmaps (covered texels)."""
-    from methods.data_driven.bake import bake_indirect, object_albedo
-    from prtbench.transport.raytrace import Tracer
 
     tracer = Tracer.from_scene(scene)
     albedo = object_albedo(scene, tracer)
     out = np.zeros((len(lights), len(lightmap), 3), np.float32)
-    from tqdm import tqdm
-
-    from prtbench.transport.parallel import map_chunks
 
     def bake(k: int) -> np.ndarray:
         return bake_indirect(tracer, albedo, lightmap.points, lightmap.normals, lightmap.albedo,

@@ -21,8 +21,12 @@ import numpy as np
 
 from methods.data_driven.basis import decode, encode, predict, project, projected, to_examples
 from methods.data_driven.dataset import bake_lightmaps, build_dataset, family_lights, measure_direct
+from methods.data_driven.lights import light_spec
 from methods.data_driven.method import DataDrivenPRT, fit_basis
+from methods.data_driven.reference import render_light_reference
+from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.method import load_or_precompute
+from prtbench.transport.raytrace import geometry_mask
 
 
 def with_knobs(config: Any, **changes: Any) -> Any:
@@ -61,8 +65,6 @@ def reference_lightmaps(scene: Any, config: Any, dataset: Any, lights: Sequence,
 
     Their mean is the reference; half their difference estimates its noise.
     """
-    from methods.data_driven.lights import light_spec
-    from prtbench.api.cache import cached_arrays, content_key
 
     paths = config.paths_per_texel * factor
     key = content_key("ddprt-reflightmaps", scene.content_hash(), config.lightmap_resolution,
@@ -157,8 +159,6 @@ def image_study(scene: Any, config: Any, light: Any, *, view: Any, width: int, h
     with_direct : bool
         Also render direct light (ours and Mitsuba's ``max_depth = 2``).
     """
-    from methods.data_driven.reference import render_light_reference
-    from prtbench.bench.runner import geometry_mask
 
     artifact = load_or_precompute(DataDrivenPRT, scene, config, progress=progress)
     dataset = build_dataset(scene, config, progress=progress)

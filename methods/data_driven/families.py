@@ -17,6 +17,8 @@ import numpy as np
 
 from methods.data_driven.lights import DirectionalLight, EnvironmentRotations, PointLight, SpotLight
 from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.scene.geometry import sample_surface
+from prtbench.transport.raytrace import Tracer, offset_origins
 
 FAMILIES = ("env-rotations", "spot", "point", "directional")
 REGIONS = ("auto", "inside", "above")
@@ -24,7 +26,6 @@ REGIONS = ("auto", "inside", "above")
 
 def _is_enclosure(scene: Any, target: np.ndarray) -> bool:
     """True when rays from ``target`` along ±x, ±y, ±z hit geometry in at least 4 of 6."""
-    from prtbench.transport.raytrace import Tracer
 
     tracer = Tracer.from_scene(scene)
     axes = np.concatenate([np.eye(3), -np.eye(3)])
@@ -71,7 +72,6 @@ def _anchored(scene: Any, rng: np.random.Generator, n: int, anchors: tuple[np.nd
     tries) such that the light stays inside the scene's bounds, keeps ``clearance`` × diagonal
     from every surface and sees the anchor.
     """
-    from prtbench.transport.raytrace import Tracer, offset_origins
 
     tracer = Tracer.from_scene(scene)
     lo, hi = scene.bounds()
@@ -149,7 +149,6 @@ def sample_family(scene: Any, family: str, count: int, *, seed: int, environment
     kind, target, distance = light_region(scene, region)
     if kind == "inside":
         if anchors is None:
-            from prtbench.scene.geometry import sample_surface
 
             samples = sample_surface(scene, 256, seed=int(seed) + 17)
             anchors = (samples.points, samples.normals)

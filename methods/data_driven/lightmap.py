@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.scene.geometry import scene_atlas
 from prtbench.scene.model import Scene
 
 
@@ -120,7 +121,6 @@ def build_lightmap(scene: Scene, *, resolution: int, padding: int = 2) -> Lightm
     InvalidInputError
         If a material is textured (albedo per object only) or the atlas does not pack.
     """
-    from prtbench.scene.geometry import scene_atlas
 
     try:
         atlases = scene_atlas(scene, resolution=resolution, padding=padding)

@@ -26,6 +26,7 @@ from typing import Any, Union
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.lights import EnvironmentLight
 
 Rgb = tuple[float, float, float]
 
@@ -183,7 +184,6 @@ def is_environment(light: Any) -> bool:
 
 def rotate_environment(light: Any, columns: int, *, name: str | None = None):
     """``light`` turned about +Y by ``columns`` lat-long columns (exact: a roll of the image)."""
-    from prtbench.transport.lights import EnvironmentLight
 
     k = int(columns) % light.width
     return EnvironmentLight(name or f"{light.name}@{k}", np.roll(light.image, k, axis=1),

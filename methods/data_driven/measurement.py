@@ -28,6 +28,7 @@ import numpy as np
 from prtbench.api.errors import InvalidInputError, UnknownNameError
 from prtbench.scene.geometry import sample_surface
 from prtbench.scene.model import Scene, TriangleMesh
+from prtbench.transport.raytrace import Tracer, offset_origins
 
 PLACEMENTS = ("visible", "surface", "hull")
 
@@ -154,7 +155,6 @@ def hull_mesh(scene: Scene) -> TriangleMesh:
 def visible_from_views(scene: Scene, points: np.ndarray, normals: np.ndarray, *,
                        aspect: float = 4.0 / 3.0) -> np.ndarray:
     """(N,) bool: each point is seen by at least one trajectory camera (frustum, facing, unoccluded)."""
-    from prtbench.transport.raytrace import Tracer, offset_origins
 
     tracer = Tracer.from_scene(scene)
     origins = offset_origins(points, normals, diagonal=tracer.diagonal)

@@ -20,16 +20,19 @@ with the Mitsuba reference of the same depth (``max_depth = bounces + 2``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from methods.common.materials import check_diffuse_constant_kd
 from methods.data_driven.basis import LAYOUTS, Basis, encode, fit, to_examples
+from methods.data_driven.dataset import build_dataset
 from methods.data_driven.families import FAMILIES, REGIONS
 from methods.data_driven.measurement import PLACEMENTS
+from methods.data_driven.runtime import DataDrivenRenderer
 from prtbench.api.config import check_memory, knob, seed_knob
 from prtbench.api.method import Artifact, Method, register_method
+from prtbench.render import ops
+from prtbench.transport.lights import get_light
 
 
 @dataclass(frozen=True)
@@ -117,6 +120,8 @@ def fit_basis(dataset, config: DataDrivenConfig) -> Basis:
 class DataDrivenPRT(Method):
     """Belcour et al. 2022: direct-to-indirect transfer through a learnt lightmap basis."""
 
+    storage = "per-texel"
+
     Config = DataDrivenConfig
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
@@ -155,14 +160,11 @@ class DataDrivenPRT(Method):
                      36 * config.configurations * texels + 12 * config.basis * texels,
                      accepted="fewer configurations or a smaller lightmap_resolution")
         if config.light_family == "env-rotations":
-            from prtbench.transport.lights import get_light
 
             get_light(config.environment or scene.default_light)  # names the bad light
 
     @classmethod
     def precompute(cls, scene, config: DataDrivenConfig, *, progress: bool = True) -> Artifact:
-        from methods.data_driven.dataset import build_dataset
-
         dataset = build_dataset(scene, config, progress=progress)
         basis = fit_basis(dataset, config)
         lightmap, points = dataset.lightmap, dataset.points
@@ -187,7 +189,6 @@ class DataDrivenPRT(Method):
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: DataDrivenConfig, *, width: int,
                  height: int):
-        from methods.data_driven.runtime import DataDrivenRenderer
 
         return DataDrivenRenderer(scene, artifact.arrays, width=width, height=height,
                                   basis_count=config.basis,
@@ -207,19 +208,18 @@ class DataDrivenPRT(Method):
         P points × n basis elements, a fetch and a madd each); then per covered pixel (after
         a depth pre-pass) the same direct lighting and the indirect sum over the basis
         textures (mono: ⌈n/4⌉ RGBA lookups and 3 coefficient fetches each; interleaved: n)."""
-        from prtbench.tradeoff import cost
 
         lights, tile = config.env_lights, config.env_shadow_resolution
         points, n = config.measurement_points, config.basis
         gamma = config.gamma != 1.0
         per_light = {"madds": 50.0, "fetches": 4.0, "bytes": 16.0}
-        direct = cost.scaled(per_light, lights)
-        shadow_pass = cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        direct = ops.scaled(per_light, lights)
+        shadow_pass = ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                          pixels=tile * tile, varyings=3, vertex_bytes=12)
-        shadows = cost.scaled(cost.add_counts(shadow_pass, {"madds": 4.0 * tile * tile}), lights)
-        gbuffer = cost.scaled(cost.add_counts(direct, {"fetches": 3.0, "bytes": 48.0}),
+        shadows = ops.scaled(ops.add_counts(shadow_pass, {"madds": 4.0 * tile * tile}), lights)
+        gbuffer = ops.scaled(ops.add_counts(direct, {"fetches": 3.0, "bytes": 48.0}),
                               points * config.supersample)
-        transfer = {"madds": 3.0 * points * (n + (cost.TRANSCENDENTAL_MADDS if gamma else 0)),
+        transfer = {"madds": 3.0 * points * (n + (ops.TRANSCENDENTAL_MADDS if gamma else 0)),
                     "fetches": 3.0 * points * (n + 1), "bytes": 3.0 * points * (4 * n + 16)}
         if config.channels == "interleaved":
             indirect = {"madds": 3.0 * n, "fetches": 2.0 * n, "bytes": 16.0 * n + 4 * 16.0 * n}
@@ -227,11 +227,11 @@ class DataDrivenPRT(Method):
             textures = -(-n // 4)
             indirect = {"madds": 12.0 * textures, "fetches": 4.0 * textures,
                         "bytes": textures * (4 * 16.0 + 3 * 16.0)}
-        shade = cost.add_counts(direct, indirect, {
-            "madds": 3 + cost.TRANSCENDENTAL_MADDS + (3 * cost.TRANSCENDENTAL_MADDS if gamma else 0)})
-        return cost.add_counts(
+        shade = ops.add_counts(direct, indirect, {
+            "madds": 3 + ops.TRANSCENDENTAL_MADDS + (3 * ops.TRANSCENDENTAL_MADDS if gamma else 0)})
+        return ops.add_counts(
             shadows, gbuffer, transfer,
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=11, vertex_bytes=44,
                                depth_prepass=True),
-            cost.scaled(shade, covered_pixels))
+            ops.scaled(shade, covered_pixels))

@@ -27,6 +27,9 @@ import numpy as np
 from methods.data_driven.lights import analytic_lights, is_environment, light_spec
 from prtbench.api.cache import cache_root, content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.io.imageio import read_exr, read_exr_metadata, write_exr
+from prtbench.render.mitsuba_variant import select_variant
+from prtbench.render.reference import mitsuba_scene_dict
 
 #: Bump when a change here changes pixels.
 VERSION = 1
@@ -58,7 +61,6 @@ class _Black:
 def scene_dict(scene: Any, light: Any, view: Any, *, width: int, height: int,
                max_depth: int) -> dict[str, Any]:
     """``mi.load_dict`` description of ``scene`` under ``light`` (variant must be set)."""
-    from prtbench.render.reference import mitsuba_scene_dict
 
     env = light if is_environment(light) else _Black()
     out = mitsuba_scene_dict(scene, env, view, width=width, height=height, bounces=0)
@@ -110,8 +112,6 @@ def render_light_reference(scene: Any, light: Any, view: Any, *, width: int, hei
     component : {"total", "direct", "indirect"}
     seed : int
     """
-    from prtbench.io.imageio import read_exr, read_exr_metadata, write_exr
-    from prtbench.render.reference import select_variant
 
     if component not in COMPONENTS:
         raise InvalidInputError(f"reference component '{component}'; accepted: {', '.join(COMPONENTS)}")

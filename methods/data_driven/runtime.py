@@ -17,6 +17,7 @@ Passes are timed separately by :meth:`DataDrivenRenderer.pass_times`.
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -334,7 +335,6 @@ class DataDrivenRenderer(Renderer):
 
     def _time_once(self, fn) -> float:
         """Milliseconds of one call of ``fn`` (timer query, or wall clock + glFinish on CPUs)."""
-        import time
 
         if self.timer.source == "wall+finish":
             start = time.perf_counter()

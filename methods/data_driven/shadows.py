@@ -22,6 +22,7 @@ from methods.data_driven.lights import (
     analytic_lights,
     is_environment,
 )
+from prtbench.api.errors import InvalidInputError
 from prtbench.render import gl
 from prtbench.scene.model import View
 
@@ -60,8 +61,6 @@ class ShadowTiles:
     CUBE = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
     def __init__(self, lights: list, lo: np.ndarray, hi: np.ndarray, *, resolution: int):
-        from prtbench.api.errors import InvalidInputError
-
         if len(lights) > MAX_LIGHTS:
             raise InvalidInputError(f"{len(lights)} lights; accepted: at most {MAX_LIGHTS}")
         self.resolution = int(resolution)

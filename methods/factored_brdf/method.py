@@ -13,9 +13,9 @@ n⁴ of Sloan's glossy transfer matrix) and the vertex shader combines the J lig
 with the outgoing factors g_j looked up at the current view (a texture per material and term).
 The radiance is interpolated across triangles (Gouraud), as for the other vertex methods.
 
-Local frame: (t1, t2, n) = ``prtbench.transport.transfer.tangent_frames(n, 0)`` per vertex, passed to
+Local frame: (t1, t2, n) = ``prtbench.transport.ray_pattern.tangent_frames(n, 0)`` per vertex, passed to
 the shader as attributes, so precompute and render use the same tangents. The transfer reuses
-the diffuse transfer's rays (:class:`~prtbench.transport.transfer.RayPattern`, same seed: the same
+the diffuse transfer's rays (:class:`~prtbench.transport.ray_pattern.RayPattern`, same seed: the same
 directions) with the weight h̃_j(ω) = h_j/cos θ looked up bilinearly in the incoming table.
 
 What limits it (the lecture's critique, "only less glossy materials"): a Phong lobe of large
@@ -24,16 +24,24 @@ exponent s needs many terms; the factorization error at fixed J grows with s.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from methods.common.materials import validate_constant_materials
 from methods.factored_brdf import SHADER_DIR
-from methods.vertex.glossy import _validate_materials
 from prtbench.api.config import knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
+from prtbench.render import ops
 from prtbench.render.raster import RasterRenderer
+from prtbench.transport.compress.factor import HemisphereGrid, bilinear_lookup, factor_brdf
+from prtbench.transport.parallel import map_chunks, single_threaded_blas
+from prtbench.transport.ray_pattern import RayPattern, tangent_frames
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.sh import eval_sh
+from prtbench.transport.transfer import check_inputs, point_chunks, progress_bar
 
 _PROFILES = {
     "smoke": {"rays_per_point": 128, "sh_bands": 4, "brdf_resolution": 8},
@@ -66,7 +74,6 @@ class FactoredBrdfConfig:
 
 def grids(config: FactoredBrdfConfig):
     """(outgoing grid, incoming grid) of ``config``."""
-    from prtbench.transport.compress.factor import HemisphereGrid
 
     r = config.brdf_resolution
     return HemisphereGrid(r, 4 * r), HemisphereGrid(2 * r, 8 * r)
@@ -91,7 +98,6 @@ def scene_materials(scene) -> tuple[list, np.ndarray]:
 
 def brdf_frames(normals: np.ndarray) -> np.ndarray:
     """(V, 3, 3) float64 local frames (rows t1, t2, n) in which the BRDF is factored."""
-    from prtbench.transport.transfer import tangent_frames
 
     n = np.asarray(normals, np.float64)
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
@@ -123,19 +129,8 @@ def factored_transfer(scene, points: np.ndarray, normals: np.ndarray, *, incomin
     -------
     ndarray, shape (N, J, n²), float32
     """
-    from prtbench.transport.compress.factor import bilinear_lookup
-    from prtbench.transport.parallel import map_chunks
-    from prtbench.transport.raytrace import Tracer, offset_origins
-    from prtbench.transport.sh import eval_sh
-    from prtbench.transport.transfer import (
-        RayPattern,
-        _check_inputs,
-        _chunks,
-        _progress,
-        _single_threaded_blas,
-    )
 
-    p, n = _check_inputs(points, normals, bands, rays_per_point)
+    p, n = check_inputs(points, normals, bands, rays_per_point)
     m, n2, terms = int(rays_per_point), bands * bands, incoming.shape[1]
     material_of_point = np.asarray(material_of_point)
     tracer = Tracer.from_scene(scene)
@@ -162,9 +157,9 @@ def factored_transfer(scene, points: np.ndarray, normals: np.ndarray, *, incomin
         y = eval_sh(world.reshape(-1, 3), bands).reshape(count, m, n2)
         return np.einsum("pmj,pmi->pji", weight, y).astype(np.float32)
 
-    chunks = _chunks(len(p), m, max(1, _SCRATCH_BYTES // (8 * m * (n2 + terms + 3))))
-    with _progress(len(p), f"factored transfer {scene.name}", progress) as bar, \
-            _single_threaded_blas():
+    chunks = point_chunks(len(p), m, max(1, _SCRATCH_BYTES // (8 * m * (n2 + terms + 3))))
+    with progress_bar(len(p), f"factored transfer {scene.name}", progress) as bar, \
+            single_threaded_blas():
         for values, sl in zip(map_chunks(chunk, chunks), chunks):
             out[sl] = values
             bar.update(sl.stop - sl.start)
@@ -174,6 +169,8 @@ def factored_transfer(scene, points: np.ndarray, normals: np.ndarray, *, incomin
 @register_method("factored-brdf")
 class FactoredBrdf(Method):
     """Factored BRDF (J separable terms), J SH transfer vectors per vertex, view per vertex."""
+
+    storage = "per-vertex"
 
     Config = FactoredBrdfConfig
     precompute_version = "3"  # 2: the s = 0 Phong lobe is a hemisphere about r; 3: one-thread SVD
@@ -190,7 +187,7 @@ class FactoredBrdf(Method):
 
     @classmethod
     def validate(cls, scene, config: FactoredBrdfConfig) -> None:
-        _validate_materials(cls.name, scene)
+        validate_constant_materials(cls.name, scene)
         materials, _ = scene_materials(scene)
         if config.terms > 1 and not any(max(m.ks) > 0 for m in materials):
             # Every material is diffuse: ρ = kd/π·cos θi has rank exactly 1.
@@ -202,7 +199,6 @@ class FactoredBrdf(Method):
     def factor(cls, scene, config: FactoredBrdfConfig):
         """(per-material :class:`~prtbench.transport.compress.factor.FactoredBrdf` with min(J, rank)
         terms, (V,) material index of each vertex)."""
-        from prtbench.transport.compress.factor import factor_brdf
 
         out_grid, in_grid = grids(config)
         materials, of_vertex = scene_materials(scene)
@@ -222,8 +218,6 @@ class FactoredBrdf(Method):
 
     @classmethod
     def precompute(cls, scene, config: FactoredBrdfConfig, *, progress: bool = True) -> Artifact:
-        import time
-
         clock = time.perf_counter()
         factors, of_vertex = cls.factor(scene, config)
         factor_s = time.perf_counter() - clock
@@ -260,16 +254,15 @@ class FactoredBrdf(Method):
         """factored_brdf.vert per vertex: J·n² SSBO loads and RGB madds (the light dot
         products), the view's local angles (acos, atan) and J bilinear RGB lookups of g_j and
         RGB madds. The fragment stage interpolates the radiance (3 varyings)."""
-        from prtbench.tradeoff import cost
 
         j, n2 = config.terms, config.sh_bands**2
         fetches = float(j * n2 + j)
-        per_vertex = {"madds": 3.0 * j * n2 + 3.0 * j + 12 + 2 * cost.TRANSCENDENTAL_MADDS,
+        per_vertex = {"madds": 3.0 * j * n2 + 3.0 * j + 12 + 2 * ops.TRANSCENDENTAL_MADDS,
                       "fetches": fetches, "bytes": 4.0 * j * n2 + 4 * 12.0 * j}
-        return cost.add_counts(
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        return ops.add_counts(
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=3, vertex_bytes=64),
-            cost.scaled(per_vertex, scene_vertices))
+            ops.scaled(per_vertex, scene_vertices))
 
 
 class FactoredBrdfRenderer(RasterRenderer):

@@ -8,7 +8,7 @@ so it stores the SH projection of its binary visibility over the whole sphere, w
 
 estimated with ``rays_per_probe`` uniform sphere directions (a Cranley–Patterson shifted
 Fibonacci lattice) turned by a random rotation per probe; the SH are evaluated once in the
-pattern's frame and each probe's coefficients are rotated (prtbench.transport.transfer.ShRotation).
+pattern's frame and each probe's coefficients are rotated (prtbench.transport.ray_pattern.ShRotation).
 
 Invalid probes. A probe inside a closed object, or under a one-sided ground, sees the back of
 the surfaces around it. A probe whose fraction of back-face hits exceeds
@@ -34,14 +34,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm import tqdm
 
 from methods.common.materials import check_diffuse_constant_kd
 from methods.irradiance_volume import SHADER_DIR
 from prtbench.api.config import knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
-from prtbench.render import gl
+from prtbench.render import gl, ops
 from prtbench.render.raster import RasterRenderer, clip_planes
+from prtbench.transport.parallel import map_chunks, parallel_chunks
+from prtbench.transport.ray_pattern import ShRotation, fibonacci_square
+from prtbench.transport.raytrace import Tracer
 from prtbench.transport.sh import clamped_cosine_zonal, eval_sh, tpfl_matrix
 
 #: Rays per embree call while tracing probes (bounds the temporary arrays to ~100 MB).
@@ -105,7 +109,6 @@ def probe_grid(scene, *, resolution: int, padding: float) -> tuple[np.ndarray, n
 
 def sphere_pattern(rays: int, rng: np.random.Generator) -> np.ndarray:
     """``rays`` area-uniform stratified unit directions (M, 3): a shifted Fibonacci lattice."""
-    from prtbench.transport.transfer import fibonacci_square
 
     u = fibonacci_square(rays, shift=rng.random(2))
     z = 1.0 - 2.0 * u[:, 0]
@@ -151,10 +154,6 @@ def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_prob
     backface_fraction : ndarray, shape (P,), float64
         Fraction of rays whose first hit is the back of a triangle.
     """
-    from tqdm import tqdm
-
-    from prtbench.transport.parallel import map_chunks, parallel_chunks
-    from prtbench.transport.transfer import ShRotation
 
     p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     m = int(rays_per_probe)
@@ -203,6 +202,8 @@ def probe_radiance(visibility: np.ndarray, light_sh: np.ndarray, bands: int) -> 
 class IrradianceVolume(Method):
     """Greger et al. 1998: SH probes on a grid, trilinearly interpolated per fragment."""
 
+    storage = "per-probe"
+
     Config = IrradianceVolumeConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
@@ -225,8 +226,6 @@ class IrradianceVolume(Method):
 
     @classmethod
     def precompute(cls, scene, config: IrradianceVolumeConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.raytrace import Tracer
-
         origin, cell, positions = probe_grid(scene, resolution=config.resolution,
                                              padding=config.padding)
         visibility, backface = probe_visibility(
@@ -254,17 +253,16 @@ class IrradianceVolume(Method):
         validity fetch each, 8·n² RGB texel fetches weighted into n² coefficients, and the
         clamped-cosine zonal evaluation at the normal (sh_zonal_eval_rgb). The grid resolution
         N changes what is resident, not the per-pixel work: ``ops`` does not grow with N."""
-        from prtbench.tradeoff import cost
 
         n2 = config.sh_bands**2
         texel = 12 if config.precision == "float32" else 6
-        zonal_eval = cost.sh_eval_madds(config.sh_bands) + 3.0 * n2 + 6.0 * config.sh_bands
-        per_pixel = {"madds": 20.0 + 8 * 6 + 8 * 3.0 * n2 + zonal_eval + 3 + cost.TRANSCENDENTAL_MADDS,
+        zonal_eval = ops.sh_eval_madds(config.sh_bands) + 3.0 * n2 + 6.0 * config.sh_bands
+        per_pixel = {"madds": 20.0 + 8 * 6 + 8 * 3.0 * n2 + zonal_eval + 3 + ops.TRANSCENDENTAL_MADDS,
                      "fetches": 8.0 + 8.0 * n2, "bytes": 8.0 + 8.0 * n2 * texel}
-        return cost.add_counts(
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        return ops.add_counts(
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=9, vertex_bytes=36),
-            cost.scaled(per_pixel, covered_pixels))
+            ops.scaled(per_pixel, covered_pixels))
 
 
 def radiance_texture_layout(radiance: np.ndarray, resolution: int, bands: int) -> np.ndarray:

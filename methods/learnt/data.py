@@ -18,6 +18,9 @@ import numpy as np
 
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.scene.geometry import sample_surface
+from prtbench.transport import transfer
+from prtbench.transport.transfer import compute_transfer
 
 #: Bump when the sampling or the held-out selection changes.
 DATA_VERSION = 1
@@ -53,9 +56,7 @@ class TransferSamples:
 def geometry_key(scene) -> str:
     """Hash of what transfer depends on: object names, positions, faces, normals (no materials)
     and the version of the core transfer code, so a fix there retires cached training data."""
-    from prtbench.transport.transfer import TRANSFER_VERSION
-
-    return content_key("learnt-geometry", TRANSFER_VERSION,
+    return content_key("learnt-geometry", transfer.TRANSFER_VERSION,
                        [[o.name, o.mesh.positions, o.mesh.faces, o.mesh.normals]
                         for o in scene.objects])
 
@@ -89,7 +90,6 @@ def object_counts(scene, samples: int, balance: float) -> np.ndarray:
 
 def _draw(scene, samples: int, *, seed: int, vertex_margin: float, balance: float):
     """Turk samples: whole-scene area-uniform (balance 0) or per-object counts."""
-    from prtbench.scene.geometry import sample_surface
 
     if balance == 0:
         drawn = sample_surface(scene, samples, seed=seed, min_barycentric=vertex_margin)
@@ -142,8 +142,6 @@ def training_samples(scene, *, samples: int, rays_per_point: int, bands: int, se
     key = content_key("learnt-train", *parts)
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.transport.transfer import compute_transfer
-
         points, normals, ids = _draw(scene, samples, seed=seed, vertex_margin=vertex_margin,
                                      balance=object_balance)
         transfer = compute_transfer(scene, points, normals, bands=bands,
@@ -169,8 +167,6 @@ def heldout_samples(scene, *, max_vertices: int, rays_per_point: int, bands: int
                       rays_per_point, bands, seed, *(() if visibility else ("unshadowed",)))
 
     def compute() -> dict[str, np.ndarray]:
-        from prtbench.transport.transfer import compute_transfer
-
         positions, normals, _, _ = scene.merged()
         object_ids = np.concatenate([np.full(o.mesh.n_vertices, i, np.int32)
                                      for i, o in enumerate(scene.objects)])

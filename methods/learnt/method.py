@@ -19,9 +19,18 @@ Entry point: ``methods/learnt/spec.py``.
 
 from __future__ import annotations
 
+import sys
+
 from methods.learnt.config import PROFILE_OVERRIDES, LearntConfig, check_training_memory
+from methods.learnt.glsl import check_glsl_limit, hardcoded_floats
+from methods.learnt.model import LearntModel, spec_of, train_model
+from methods.learnt.network import resolve_device
+from methods.learnt.renderer import GLSLRenderer
+from methods.learnt.torch_renderer import TorchRenderer
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
+from prtbench.render import ops
+from prtbench.render.ops import TRANSCENDENTAL_MADDS
 from prtbench.scene.model import Texture
 
 __all__ = ["LearntTransfer", "LearntConfig"]
@@ -30,6 +39,8 @@ __all__ = ["LearntTransfer", "LearntConfig"]
 @register_method("learnt")
 class LearntTransfer(Method):
     """Transfer regressed by small MLPs, evaluated per pixel in GLSL or torch."""
+
+    storage = "network"
 
     Config = LearntConfig
     precompute_version = "1"
@@ -48,9 +59,6 @@ class LearntTransfer(Method):
 
     @classmethod
     def validate(cls, scene, config: LearntConfig) -> None:
-        from methods.learnt.glsl import check_glsl_limit
-        from methods.learnt.model import spec_of
-
         for obj in scene.objects:
             for attr in ("kd", "ks", "shininess"):
                 if isinstance(getattr(obj.material, attr), Texture):
@@ -66,7 +74,6 @@ class LearntTransfer(Method):
                                     "positive integers, e.g. 2,1,2")
         check_training_memory(cls.name, config)
         if config.device == "cuda":
-            from methods.learnt.network import resolve_device
 
             resolve_device("cuda")
         if config.renderer == "glsl":
@@ -76,13 +83,9 @@ class LearntTransfer(Method):
 
     @classmethod
     def precompute(cls, scene, config: LearntConfig, *, progress: bool = True) -> Artifact:
-        from methods.learnt.glsl import hardcoded_floats
-        from methods.learnt.model import train_model
-
         model, stats = train_model(scene, config, progress=progress)
         meta = {**stats, "glsl_hardcoded_floats": hardcoded_floats(model.spec, len(model.networks))}
         if progress:
-            import sys
 
             vertices = stats["heldout_vertices"]
             print(f"[learnt] {stats['groups']} network(s), {stats['parameters']:,} parameters, "
@@ -96,14 +99,11 @@ class LearntTransfer(Method):
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: LearntConfig, *, width: int,
                  height: int):
-        from methods.learnt.model import LearntModel
 
         model = LearntModel.from_arrays(artifact.arrays)
         if config.renderer == "torch":
-            from methods.learnt.torch_renderer import TorchRenderer
 
             return TorchRenderer(scene, model, config, width=width, height=height)
-        from methods.learnt.renderer import GLSLRenderer
 
         return GLSLRenderer(scene, model, config, width=width, height=height)
 
@@ -113,14 +113,13 @@ class LearntTransfer(Method):
         """learnt.frag per covered pixel (after the depth pre-pass): one sub-scene network
         (network_counts), then H by TPFL or TP and Phong shading of H; the weights are read
         once per frame (immediates in GLSL, a tensor in torch)."""
-        from prtbench.tradeoff import cost
 
-        per_pixel = cost.add_counts(network_counts(config), shade_counts(config))
-        return cost.add_counts(
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        per_pixel = ops.add_counts(network_counts(config), shade_counts(config))
+        return ops.add_counts(
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=13, vertex_bytes=56,
                                depth_prepass=True),
-            cost.scaled(per_pixel, covered_pixels), {"bytes": float(memory_bytes)})
+            ops.scaled(per_pixel, covered_pixels), {"bytes": float(memory_bytes)})
 
 
 def network_counts(config) -> dict[str, float]:
@@ -131,7 +130,6 @@ def network_counts(config) -> dict[str, float]:
     its tanh, and a bias and leaky-ReLU per vec4 of every layer. Weights are constants: no
     fetches. Used by ``learnt`` and ``learnt-sdf``.
     """
-    from prtbench.tradeoff.cost import TRANSCENDENTAL_MADDS
 
     in4 = -(-(6 + 12 * config.pe_frequencies) // 4)
     k4, out4 = config.hidden // 4, -(-config.sh_bands**2 // 4)
@@ -145,10 +143,9 @@ def network_counts(config) -> dict[str, float]:
 def shade_counts(config) -> dict[str, float]:
     """H from the network's T (TPFL matrix or the Γ list, the ``product`` knob) and Phong
     shading of H (prt_shading.glsl), with the two normalizes."""
-    from prtbench.tradeoff import cost
 
     n = config.sh_bands
-    product = (cost.triple_product_counts(n) if config.product == "tp"
-               else {"madds": cost.tpfl_product_madds(n)})
-    return cost.add_counts(product, {
-        "madds": cost.shade_transferred_madds(n) + 2 * cost.TRANSCENDENTAL_MADDS})
+    product = (ops.triple_product_counts(n) if config.product == "tp"
+               else {"madds": ops.tpfl_product_madds(n)})
+    return ops.add_counts(product, {
+        "madds": ops.shade_transferred_madds(n) + 2 * ops.TRANSCENDENTAL_MADDS})

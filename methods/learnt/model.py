@@ -19,6 +19,7 @@ from methods.learnt.data import geometry_key, heldout_samples, training_samples
 from methods.learnt.network import (
     Network,
     NetworkSpec,
+    TorchNetwork,
     box_normalisation,
     heldout_error,
     predict,
@@ -94,8 +95,6 @@ def _constant_network(spec: NetworkSpec, value: np.ndarray) -> Network:
 def _range_check(model: LearntModel, points, normals, object_ids, truth) -> dict[str, float]:
     """How close tanh comes to saturating on held-out points, and targets it cannot reach."""
     import torch
-
-    from methods.learnt.network import TorchNetwork
 
     group = model.partition.group_of_points(points, object_ids)
     max_raw, unreachable = 0.0, 0

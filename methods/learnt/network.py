@@ -18,9 +18,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from methods.learnt.data import check_finite
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.sh import eval_sh
 
 
 @dataclass(frozen=True)
@@ -181,7 +183,6 @@ def predict(network: Network, spec: NetworkSpec, points: np.ndarray, normals: np
 def projection_canvas(rows: int, bands: int) -> np.ndarray:
     """(rows·2rows, n²) SH values at the cell centres of a lat-long canvas (unweighted, as a
     naive canvas projection is: the loss of thesis §4.3.2)."""
-    from prtbench.transport.sh import eval_sh
 
     theta = (np.arange(rows) + 0.5) / rows * np.pi
     phi = (np.arange(2 * rows) + 0.5) / (2 * rows) * 2 * np.pi
@@ -251,7 +252,6 @@ def train_network(points: np.ndarray, normals: np.ndarray, targets: np.ndarray, 
         raise InvalidInputError(f"training targets shape {targets.shape}; expected "
                                 f"({len(points)}, {spec.n_outputs}) for {spec.bands} SH bands")
     torch = _torch()
-    from tqdm.auto import tqdm
 
     start = time.perf_counter()
     torch.manual_seed(seed)

@@ -20,19 +20,19 @@ import subprocess
 import sys
 import time
 
+import numpy as np
+
+from methods.learnt.config import LearntConfig
+from methods.learnt.glsl import hardcoded_floats
+from methods.learnt.model import LearntModel
+from methods.learnt.network import Network, NetworkSpec
+from methods.learnt.renderer import GLSLRenderer
+from methods.learnt.subdivide import build_partition
+from prtbench.scene.registry import get_scene
+from prtbench.transport.lights import get_light
+
 
 def _child(hidden: int, layers: int, frequencies: int) -> dict:
-    import numpy as np
-
-    from methods.learnt.config import LearntConfig
-    from methods.learnt.glsl import hardcoded_floats
-    from methods.learnt.model import LearntModel
-    from methods.learnt.network import Network, NetworkSpec
-    from methods.learnt.renderer import GLSLRenderer
-    from methods.learnt.subdivide import build_partition
-    from prtbench.scene.model import get_scene
-    from prtbench.transport.lights import get_light
-
     spec = NetworkSpec(4, hidden, layers, frequencies, 0.01)
     rng = np.random.default_rng(0)
     net = Network([rng.normal(0, 1 / np.sqrt(i), (o, i)).astype(np.float32)

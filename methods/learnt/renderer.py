@@ -13,11 +13,12 @@ from methods.learnt import SHADER_DIR, glsl
 from methods.learnt.model import LearntModel
 from prtbench.api.method import FrameTimes, Renderer
 from prtbench.render import gl
+from prtbench.render import prt_shading as _triple
+from prtbench.render.raster import clip_planes, kd_per_vertex
 
 
 def vertex_attributes(scene) -> dict[str, np.ndarray]:
     """Per-vertex inputs of ``learnt.vert`` in merged order: normal, kd, ks, shininess, object."""
-    from prtbench.render.raster import kd_per_vertex
 
     _, normals, _, _ = scene.merged()
     ks = np.concatenate([np.broadcast_to(np.asarray(o.material.ks, np.float32),
@@ -74,7 +75,6 @@ class LearntGLBase(Renderer):
 
     def _draw_geometry(self, view, light) -> None:
         """Depth pre-pass (optional) and the main pass into ``self.target``."""
-        from prtbench.render.raster import clip_planes
 
         near, far = clip_planes(self.scene, view)
         clip_from_world = (view.clip_from_camera(self.width / self.height, near, far)
@@ -127,8 +127,6 @@ class GLSLRenderer(LearntGLBase):
     """The MLP in the fragment shader with hard-coded mat4 weights (thesis §4.1.4.1)."""
 
     def __init__(self, scene, model: LearntModel, config, *, width: int, height: int):
-        from prtbench.render import prt_shading as _triple
-
         glsl.check_glsl_limit(model.spec, len(model.networks), config.glsl_weight_limit)
         self.product = config.product
         defines = {"SH_BANDS": model.spec.bands, "LEARNT_PRODUCT_TP": config.product == "tp"}

@@ -18,7 +18,7 @@ Render (``renderer`` knob):
   (``learnt_mlp.glsl`` + :func:`methods.learnt.glsl.weights_source`) at the hit, and shades TPFL
   or TP with the hit's material (``prt_shading.glsl``). One pass, no depth: every fragment traces.
 * ``torch`` (thesis §4.1.4.2 applied to SDFs): the sphere-traced G-buffer
-  (:class:`prtbench.transport.sdf.GBufferPass`) is read back, the network runs on the hit pixels only and
+  (:class:`prtbench.render.sdf_gl.GBufferPass`) is read back, the network runs on the hit pixels only and
   :func:`methods.learnt.torch_renderer.shade_torch` shades them; the frame time includes the
   GL → host → device → host → GL copies (no GL/CUDA interop in plain torch).
 
@@ -35,20 +35,32 @@ from typing import ClassVar
 
 import numpy as np
 
-from methods.learnt import SHADER_DIR
 from methods.learnt.config import LearntConfig, check_training_memory
+from methods.learnt.data import geometry_key as mesh_key
+from methods.learnt.glsl import check_glsl_limit, hardcoded_floats
+from methods.learnt.method import network_counts, shade_counts
+from methods.learnt.network import (
+    Network,
+    NetworkSpec,
+    heldout_error,
+    predict,
+    resolve_device,
+    train_network,
+)
+from methods.learnt.sdf_renderer import GlslSdfRenderer, TorchSdfRenderer
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.config import knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import (
     Artifact,
-    FrameTimes,
     Method,
     Renderer,
     register_method,
-    wall_frame_times,
 )
+from prtbench.render import ops
 from prtbench.scene.model import Texture
+from prtbench.scene.registry import SCENES
+from prtbench.transport.sdf import SdfSurface, compute_sdf_transfer, sample_sdf_surface, trace
 from prtbench.transport.sdf.trace import SDF_TRANSFER_VERSION
 
 #: Bump when sampling, transfer or training change for the same knobs (invalidates caches).
@@ -138,8 +150,6 @@ def geometry_key(scene) -> str:
     """Hash of what transfer and samples depend on: the SDF tree, its bounds, the
     marching-cubes mesh the samples are drawn on (no materials) and the version of the SDF
     transfer code (its cache key has it; the training data cached here must follow it)."""
-    from methods.learnt.data import geometry_key as mesh_key
-    from prtbench.transport.sdf import trace
 
     sdf = scene.sdf
     return content_key("learnt-sdf-geometry", trace.SDF_TRANSFER_VERSION, sdf.root.spec(),
@@ -156,7 +166,6 @@ def surface_transfer(scene, *, points: int, rays_per_point: int, bands: int, see
     dict with ``points``, ``normals`` (N, 3) float32 (unit SDF gradients) and ``transfer``
     (N, n²) float32 (unshadowed, V = 1, with ``visibility=False``).
     """
-    from prtbench.transport.sdf import compute_sdf_transfer, sample_sdf_surface
 
     key = content_key("learnt-sdf-data", MODEL_VERSION, geometry_key(scene), points,
                       rays_per_point, bands, seed, backend,
@@ -174,8 +183,6 @@ def surface_transfer(scene, *, points: int, rays_per_point: int, bands: int, see
 
 
 def spec_of(config: LearntSdfConfig):
-    from methods.learnt.network import NetworkSpec
-
     return NetworkSpec(config.sh_bands, config.hidden, config.layers, config.pe_frequencies,
                        config.leaky_slope)
 
@@ -194,13 +201,6 @@ def train_sdf_model(scene, config: LearntSdfConfig, *, progress: bool = True):
     ``heldout`` = :func:`methods.learnt.network.heldout_error` on ``heldout_points`` other
     surface points (their reference transfer has ``heldout_rays`` rays of Monte-Carlo noise).
     """
-    from methods.learnt.network import (
-        Network,
-        heldout_error,
-        predict,
-        resolve_device,
-        train_network,
-    )
 
     spec = spec_of(config)
 
@@ -240,7 +240,6 @@ def train_sdf_model(scene, config: LearntSdfConfig, *, progress: bool = True):
 
 def network_from_artifact(arrays):
     """(Network, NetworkSpec) stored in a ``learnt-sdf`` artifact."""
-    from methods.learnt.network import Network, NetworkSpec
 
     bands, hidden, layers, frequencies = (int(v) for v in arrays["spec"])
     spec = NetworkSpec(bands, hidden, layers, frequencies, float(arrays["leaky_slope"]))
@@ -250,14 +249,14 @@ def network_from_artifact(arrays):
 # --- method ------------------------------------------------------------------------------------
 
 def _sdf_scene_names() -> str:
-    from prtbench.scene.model import SCENES
-
     return ", ".join(n for n in SCENES.names() if n.startswith("sdf-")) or "sdf-*"
 
 
 @register_method("learnt-sdf")
 class LearntSdf(Method):
     """Learnt transfer on SDF surfaces, sphere-traced in GLSL (or a torch G-buffer path)."""
+
+    storage = "network"
 
     Config = LearntSdfConfig
     # The artifact holds a network fitted to SDF transfer, so it follows that code's version.
@@ -277,8 +276,6 @@ class LearntSdf(Method):
 
     @classmethod
     def validate(cls, scene, config: LearntSdfConfig) -> None:
-        from prtbench.transport.sdf import SdfSurface
-
         if not isinstance(getattr(scene, "sdf", None), SdfSurface):
             raise InvalidInputError(
                 f"method 'learnt-sdf' needs an SDF scene, but '{scene.name}' is a mesh scene "
@@ -296,18 +293,14 @@ class LearntSdf(Method):
                                     "4 (the GLSL path packs weights into mat4 blocks)")
         check_training_memory(cls.name, config)
         if config.device == "cuda":
-            from methods.learnt.network import resolve_device
 
             resolve_device("cuda")
         if config.renderer == "glsl":
-            from methods.learnt.glsl import check_glsl_limit
 
             check_glsl_limit(spec_of(config), 1, config.glsl_weight_limit)
 
     @classmethod
     def precompute(cls, scene, config: LearntSdfConfig, *, progress: bool = True) -> Artifact:
-        from methods.learnt.glsl import hardcoded_floats
-
         network, spec, stats = train_sdf_model(scene, config, progress=progress)
         arrays = {**network.to_arrays("net_"),
                   "spec": np.array([spec.bands, spec.hidden, spec.layers, spec.frequencies],
@@ -338,200 +331,13 @@ class LearntSdf(Method):
         (:attr:`ops_mean_steps` SDF evaluations of :attr:`ops_sdf_madds`, an estimate: the
         step count is not stored); each covered pixel adds the tetrahedral normal (4 more
         evaluations), the network, H by TPFL or TP and Phong shading (as ``learnt``)."""
-        from methods.learnt.method import network_counts, shade_counts
-        from prtbench.tradeoff import cost
 
         steps = min(cls.ops_mean_steps, config.max_steps)
         per_pixel = {"madds": 20.0 + steps * (cls.ops_sdf_madds + 6)}
-        per_hit = cost.add_counts(network_counts(config), shade_counts(config),
+        per_hit = ops.add_counts(network_counts(config), shade_counts(config),
                                   {"madds": 4.0 * cls.ops_sdf_madds + 12})
-        return cost.add_counts(cost.scaled(per_pixel, width * height),
-                               cost.scaled(per_hit, covered_pixels),
+        return ops.add_counts(ops.scaled(per_pixel, width * height),
+                               ops.scaled(per_hit, covered_pixels),
                                {"bytes": float(memory_bytes) + 16.0 * covered_pixels})
 
 
-# --- renderers ---------------------------------------------------------------------------------
-
-def material_table(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """kd (M, 3), ks (M, 3), shininess (M,) float32 of the SDF's material ids."""
-    materials = scene.sdf.materials
-    kd = np.array([np.broadcast_to(np.asarray(m.kd, np.float32), 3) for m in materials], np.float32)
-    ks = np.array([np.broadcast_to(np.asarray(m.ks, np.float32), 3) for m in materials], np.float32)
-    shininess = np.array([float(m.shininess) for m in materials], np.float32)
-    return kd, ks, shininess
-
-
-class GlslSdfRenderer(Renderer):
-    """Sphere tracing, the MLP and TPFL/TP shading in one full-screen fragment shader."""
-
-    def __init__(self, scene, network, spec, config: LearntSdfConfig, *, width: int,
-                 height: int):
-        from methods.learnt import glsl
-        from prtbench.render import gl
-        from prtbench.render import prt_shading as _triple
-        from prtbench.transport.sdf import fullscreen_vao, load_sdf_program
-
-        glsl.check_glsl_limit(spec, 1, config.glsl_weight_limit)
-        self.width, self.height, self.bands, self.product = width, height, spec.bands, config.product
-        self.ctx = gl.create_context()
-        self.renderer_string = gl.renderer_string(self.ctx)
-        kd, ks, shininess = material_table(scene)
-        defines = {"SH_BANDS": spec.bands, "LEARNT_PRODUCT_TP": config.product == "tp",
-                   "SDF_MATERIALS": len(kd)}
-        self.program = load_sdf_program(
-            self.ctx, scene, "learnt_sdf.frag", defines=defines, max_steps=config.max_steps,
-            sources={"learnt_weights.glsl": glsl.weights_source([network], spec)},
-            search_path=[SHADER_DIR])
-        for name, values in (("material_kd", kd), ("material_ks", ks),
-                             ("material_shininess", shininess)):
-            # Compiled out when unused: at sh_bands=1 the Phong lobe's only coefficient g_0
-            # does not depend on s (issue #15 stability case sh_bands=1 raised KeyError).
-            if name in self.program:
-                self.program[name].write(values.tobytes())
-        self.vao = fullscreen_vao(self.ctx, self.program)
-        self.target = gl.RenderTarget(self.ctx, width, height)
-        self.triple = _triple.TripleProductBuffers(self.ctx, spec.bands,
-                                                   gamma=config.product == "tp")
-        self.timer = gl.GpuTimer(self.ctx)
-        self.weight_bytes = 4 * glsl.hardcoded_floats(spec, 1)
-
-    def _draw(self, view, light) -> None:
-        from prtbench.render import gl
-        from prtbench.transport.sdf import bind_camera
-
-        bind_camera(self.program, view, self.width, self.height)
-        if self.product == "tp":
-            self.triple.bind_gamma()
-            coeffs = np.ascontiguousarray(light.sh(self.bands), np.float32)
-            self.program["light_sh"].write(coeffs.tobytes())
-        else:
-            self.triple.bind_tpfl(light)
-        self.target.use()
-        self.target.clear()
-        self.ctx.disable(gl.moderngl.DEPTH_TEST)
-        self.vao.render(gl.moderngl.TRIANGLES, vertices=3)
-
-    def render(self, view, light) -> np.ndarray:
-        self._draw(view, light)
-        return np.ascontiguousarray(self.target.read()[..., :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
-                                       frames=frames)
-        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
-                          self.renderer_string, times.source)
-
-    def memory_bytes(self) -> int:
-        # The hard-coded weights (float32) and the light's TPFL matrix / the Γ list.
-        return int(self.weight_bytes + self.triple.memory_bytes())
-
-    def release(self) -> None:
-        for obj in (self.vao, self.program, self.triple, self.target):
-            obj.release()
-
-
-class TorchSdfRenderer(Renderer):
-    """Sphere-traced G-buffer -> torch network on hit pixels -> TPFL/TP shading in torch."""
-
-    def __init__(self, scene, network, spec, config: LearntSdfConfig, *, width: int,
-                 height: int):
-        import torch
-
-        from methods.learnt.network import TorchNetwork, resolve_device
-        from prtbench.render import gl
-        from prtbench.transport.sdf import GBufferPass
-
-        self.torch, self.spec, self.product = torch, spec, config.product
-        self.width, self.height = width, height
-        self.device = resolve_device(config.device)
-        self.ctx = gl.create_context()
-        self.gbuffer = GBufferPass(self.ctx, scene, width, height, max_steps=config.max_steps)
-        self.net = TorchNetwork(network, spec, self.device)
-        kd, ks, shininess = material_table(scene)
-        self.kd, self.ks, self.shininess = (torch.as_tensor(a, device=self.device)
-                                            for a in (kd, ks, shininess))
-        self.display = self.ctx.texture((width, height), 4, dtype="f4")
-        self._light_key, self._light_matrix, self._gamma = None, None, None
-        device_name = (torch.cuda.get_device_name(self.device) if self.device != "cpu"
-                       else f"CPU ({torch.get_num_threads()} threads)")
-        self.renderer_string = f"{gl.renderer_string(self.ctx)} + torch {device_name}"
-        self.weight_bytes = 4 * spec.n_parameters()
-        self.light_bytes = 4 * spec.n_outputs ** 2 * 3
-
-    def _matrix(self, light):
-        """M (n², n², 3) on the device: kept per light (tpfl) or contracted per frame (tp)."""
-        torch, bands = self.torch, self.spec.bands
-        if self.product == "tp":
-            from prtbench.transport.sh import triple_product_tensor
-
-            if self._gamma is None:
-                # A writable float32 copy: the tensor of prtbench.transport.sh is a read-only cache.
-                gamma = np.array(triple_product_tensor(bands), dtype=np.float32)
-                self._gamma = torch.as_tensor(gamma, device=self.device)
-            coeffs = torch.as_tensor(light.sh(bands), dtype=torch.float32, device=self.device)
-            return torch.einsum("ijk,jc->ikc", self._gamma, coeffs)
-        key = light.content_hash()
-        if key != self._light_key:
-            from prtbench.render.prt_shading import tpfl_matrix_rgb
-
-            self._light_matrix = torch.as_tensor(tpfl_matrix_rgb(light.sh(bands), bands),
-                                                 device=self.device)
-            self._light_key = key
-        return self._light_matrix
-
-    def _frame(self, view, light) -> np.ndarray:
-        """One frame; returns (H·W, 4) float32 in GL row order (bottom row first)."""
-        from methods.learnt.torch_renderer import shade_torch
-
-        torch = self.torch
-        self.gbuffer.draw(view)
-        fbo = self.gbuffer.target.fbo
-        host = np.stack([np.frombuffer(fbo.read(components=4, attachment=i, dtype="f4",
-                                                alignment=1), np.float32).reshape(-1, 4)
-                         for i in range(2)])
-        gbuf = torch.from_numpy(host).to(self.device)  # GL -> host -> device
-        with torch.no_grad():
-            hit = (gbuf[0, :, 3] > 0.5).nonzero()[:, 0]
-            packed = gbuf[:, hit]  # pack: the network sees hit pixels only
-            p, n = packed[0, :, :3], packed[1, :, :3]
-            ids = packed[1, :, 3].round().long().clamp(0, len(self.kd) - 1)
-            transfer = self.net.transfer(p, n)
-            wo = torch.as_tensor(np.asarray(view.eye, np.float32), device=self.device) - p
-            wo = wo / wo.norm(dim=1, keepdim=True)
-            radiance = shade_torch(torch, transfer, self._matrix(light), self.kd[ids],
-                                   self.ks[ids], self.shininess[ids], n, wo, self.spec.bands)
-            frame = torch.zeros((self.width * self.height, 4), device=self.device)
-            frame[hit, :3] = radiance  # unpack
-            frame[:, 3] = 1.0
-            image = frame.cpu().numpy()  # device -> host
-        self.display.write(image.tobytes())  # host -> GL, where a viewer would show it
-        return image
-
-    def render(self, view, light) -> np.ndarray:
-        image = self._frame(view, light).reshape(self.height, self.width, 4)
-        return np.ascontiguousarray(image[::-1, :, :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        """Host wall time of whole frames (trace, copies, network, shading), synchronised: GL
-        timer queries would see only the G-buffer pass."""
-        torch = self.torch
-
-        def frame() -> None:
-            self._frame(view, light)
-            self.ctx.finish()
-            if self.device != "cpu":
-                torch.cuda.synchronize()
-
-        if int(warmup) < 1 or int(frames) < 1:
-            raise InvalidInputError(f"warmup={warmup!r}, frames={frames!r}; accepted: "
-                                    "integers >= 1 (the first frame is never timed)")
-        return wall_frame_times(frame, warmup=int(warmup), frames=frames,
-                                renderer=self.renderer_string, source="wall+sync")
-
-    def memory_bytes(self) -> int:
-        # Resident weights (float32) and the light matrix, as the GLSL path counts them.
-        return int(self.weight_bytes + self.light_bytes)
-
-    def release(self) -> None:
-        self.gbuffer.release()
-        self.display.release()

@@ -21,6 +21,8 @@ from methods.learnt.model import LearntModel
 from methods.learnt.network import TorchNetwork, resolve_device
 from methods.learnt.renderer import LearntGLBase
 from prtbench.api.method import FrameTimes, wall_frame_times
+from prtbench.render.prt_shading import tpfl_matrix_rgb
+from prtbench.transport.sh import triple_product_tensor
 
 
 def sh_eval_torch(torch, dirs, bands: int):
@@ -126,7 +128,6 @@ class TorchRenderer(LearntGLBase):
         """
         torch, bands = self.torch, self.model.spec.bands
         if self.product == "tp":
-            from prtbench.transport.sh import triple_product_tensor
 
             if not hasattr(self, "_gamma"):
                 gamma = np.array(triple_product_tensor(bands), np.float32)  # a writable copy
@@ -135,7 +136,6 @@ class TorchRenderer(LearntGLBase):
             return torch.einsum("ijk,jc->ikc", self._gamma, coeffs)
         key = light.content_hash()
         if key != self._light_key:
-            from prtbench.render.prt_shading import tpfl_matrix_rgb
 
             self._light_matrix = torch.as_tensor(tpfl_matrix_rgb(light.sh(bands), bands),
                                                  device=self.device)

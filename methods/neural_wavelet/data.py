@@ -6,7 +6,7 @@
 numbers along the camera path up to the first bounce (the integrator samples the emitter, then
 the BSDF, at every vertex in the same order), so their direct parts are the same samples and
 cancel exactly: the difference is the indirect part of the same paths, not a difference of two
-noisy images (``tests/prtbench/test_neural_wavelet_data.py`` checks that it is non-negative to
+noisy images (``tests/methods/neural_wavelet/test_neural_wavelet.py`` checks that it is non-negative to
 rounding and that direct + indirect matches an independent full render within its noise).
 
 **Inputs.** The G-buffer of the same camera from our GL pass (:mod:`.gbuffer`): what the renderer
@@ -36,13 +36,23 @@ any render raises InvalidInputError before anything is stored.
 
 from __future__ import annotations
 
+import json
 import math
+import os
 import time
 
 import numpy as np
+from tqdm import tqdm
 
+from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
 from prtbench.api.cache import cached_arrays, content_key
-from prtbench.api.errors import InvalidInputError
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import View
+from prtbench.transport.lights import LIGHTS, EnvironmentLight, get_light
+from prtbench.transport.random_lights import random_environments
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.cubemap import light_cubemap
 
 #: Bump when the data (rendering, G-buffer, views, lights) changes for the same knobs.
 DATA_VERSION = 1
@@ -62,7 +72,6 @@ def without_late_defaults(knobs: dict) -> dict:
 
 def rotated_light(light, degrees: float):
     """``light`` turned about +Y by ``degrees`` (an exact column shift; name ``name@deg``)."""
-    from prtbench.transport.lights import EnvironmentLight
 
     width = light.image.shape[1]
     shift = int(round(width * float(degrees) / 360.0)) % width
@@ -80,7 +89,6 @@ def tilted_light(light, degrees: float, *, axis_azimuth_deg: float):
     The tilted map's radiance from direction d is ``light``'s from R⁻¹d, R the rotation, so a
     source at direction s moves to R s.
     """
-    from prtbench.transport.lights import EnvironmentLight
 
     if float(degrees) == 0.0:
         return light
@@ -103,8 +111,6 @@ def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0,
     """Every training light: each name at ``rotations`` turns about +Y; with ``tilt`` > 0,
     turns i ≥ 1 also tilted by a seeded angle in ±``tilt`` degrees; then ``random`` seeded
     procedural environments (:mod:`prtbench.transport.random_lights`; module docstring)."""
-    from prtbench.transport.lights import get_light
-    from prtbench.transport.random_lights import random_environments
 
     if int(rotations) != rotations or rotations < 1:
         raise InvalidInputError(f"light_rotations={rotations!r}; accepted: integers >= 1")
@@ -127,10 +133,6 @@ def training_lights(names, rotations: int, *, tilt: float = 0.0, seed: int = 0,
 
 def check_light_split(train, heldout) -> None:
     """Held-out lights must never be trained on; at least one of each."""
-    import os
-
-    from prtbench.api.errors import UnknownNameError
-    from prtbench.transport.lights import LIGHTS
 
     if not train:
         raise InvalidInputError("train_lights is empty; accepted: one or more light names")
@@ -147,7 +149,6 @@ def check_light_split(train, heldout) -> None:
 
 def _orbit(view, *, yaw_deg: float, pitch_deg: float, scale: float):
     """``view`` with its eye turned about the target (yaw about +Y, then pitch) and scaled."""
-    from prtbench.scene.model import View
 
     target = np.asarray(view.target, np.float64)
     offset = np.asarray(view.eye, np.float64) - target
@@ -185,8 +186,6 @@ def near_views(scene, *, scale: float = 0.6) -> list:
 def light_coefficients(light, n: int) -> np.ndarray:
     """Haar coefficients (6N², 3) float32 of ``light``'s texel-mean cubemap (no solid angles:
     the transport learns them, as the paper and :mod:`prtbench.transport.wavelet` both state)."""
-    from prtbench.transport.wavelet import haar
-    from prtbench.transport.wavelet.cubemap import light_cubemap
 
     cube = np.moveaxis(light_cubemap(light, n), -1, 0)  # (3, 6, N, N)
     return haar.forward(cube).reshape(3, -1).T.astype(np.float32)
@@ -211,7 +210,6 @@ def indirect_image(scene, light, view, *, width: int, height: int, spp: int, bou
         ``seconds``, ``negative`` (the most negative indirect value), ``noise_rmse`` of the
         full render.
     """
-    from prtbench.render.reference import render_reference
 
     if bounces < 1:
         raise InvalidInputError(f"bounces={bounces}; accepted: >= 1 (the network learns "
@@ -246,9 +244,6 @@ def build_dataset(scene, config, *, progress: bool = True) -> dict[str, np.ndarr
         index into the training lights, ``image`` (R,) int32. Per light: ``coeffs``
         (n_lights, 6N², 3). ``stats``: JSON facts (render seconds, most negative indirect).
     """
-    import json
-
-    from methods.neural_wavelet.gbuffer import GBufferPass, pixel_rows
 
     lights = training_lights(config.train_lights, config.light_rotations,
                              tilt=config.light_tilt, seed=config.seed,
@@ -266,7 +261,6 @@ def build_dataset(scene, config, *, progress: bool = True) -> dict[str, np.ndarr
         seconds, negative = 0.0, 0.0
         bar = None
         if progress:
-            from tqdm import tqdm
 
             bar = tqdm(total=len(jobs), desc=f"neural-wavelet data {scene.name}", unit="image",
                        leave=False)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.render import gl
 from prtbench.scene.model import Texture
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -58,8 +59,6 @@ class GBufferPass:
     """Draws the G-buffer of ``scene`` at ``width`` × ``height`` on the shared GL context."""
 
     def __init__(self, scene, *, width: int, height: int):
-        from prtbench.render import gl
-
         self.scene, self.width, self.height = scene, int(width), int(height)
         self.ctx = gl.create_context()
         self.renderer_string = gl.renderer_string(self.ctx)
@@ -71,8 +70,6 @@ class GBufferPass:
         self.target = gl.RenderTarget(self.ctx, self.width, self.height, attachments=4)
 
     def draw(self, view) -> None:
-        from prtbench.render import gl
-
         self.program["clip_from_world"].write(camera_matrix(self.scene, view, self.width,
                                                             self.height))
         self.target.use()

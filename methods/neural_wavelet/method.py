@@ -27,11 +27,17 @@ module imports no torch, moderngl or mitsuba (``prtbench list`` stays instant).
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
-from prtbench.api.config import knob, seed_knob
+from methods.neural_wavelet.data import check_light_split, without_late_defaults
+from methods.neural_wavelet.gbuffer import GBufferPass, check_constant_materials, pixel_rows
+from methods.neural_wavelet.hashgrid import check_table
+from methods.neural_wavelet.model import NeuralWaveletModel, PixelInputs
+from methods.neural_wavelet.train import resolve_device, train_model
+from prtbench.api.config import check_memory, knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import (
     Artifact,
@@ -41,6 +47,11 @@ from prtbench.api.method import (
     register_method,
     wall_frame_times,
 )
+from prtbench.render import ops
+from prtbench.render.reference import render_reference
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.cubemap import check_resolution, light_cubemap
+from prtbench.transport.wavelet.selection import select_terms
 
 #: Seed of the direct-only render added by ``direct="mitsuba"`` (the runner's reference uses 0).
 DIRECT_SEED = 104_729
@@ -173,6 +184,8 @@ PROFILE_OVERRIDES = {
 class NeuralWavelet(Method):
     """Hash grid × wavelet grid (CP) decoded by an MLP, dotted with k lighting wavelets."""
 
+    storage = "network"
+
     Config = NeuralWaveletConfig
     precompute_version = "1"
     views_in_key = True  # its training cameras are derived from the trajectory's views
@@ -186,17 +199,11 @@ class NeuralWavelet(Method):
 
     @classmethod
     def cache_identity(cls, config: NeuralWaveletConfig) -> dict:
-        from methods.neural_wavelet.data import without_late_defaults
-
         # Knobs added later leave the artifacts trained before them at their old keys.
         return without_late_defaults(super().cache_identity(config))
 
     @classmethod
     def validate(cls, scene, config: NeuralWaveletConfig) -> None:
-        from methods.neural_wavelet.data import check_light_split
-        from methods.neural_wavelet.gbuffer import check_constant_materials
-        from prtbench.transport.wavelet.cubemap import check_resolution
-
         check_constant_materials(cls.name, scene)
         n = check_resolution(config.cubemap, what="cubemap")
         m = 6 * n * n
@@ -207,7 +214,6 @@ class NeuralWavelet(Method):
             check_resolution(config.wavelet_grid, what="wavelet_grid")
         check_light_split(config.train_lights, config.heldout_lights)
         if config.features == "hashgrid":
-            from methods.neural_wavelet.hashgrid import check_table
 
             check_table(levels=config.levels, features=config.features_per_level,
                         base_resolution=config.base_resolution,
@@ -215,7 +221,6 @@ class NeuralWavelet(Method):
         if scene.n_triangles >= 1 << 24:
             raise InvalidInputError(f"scene '{scene.name}' has {scene.n_triangles} triangles; "
                                     "accepted: < 2^24 (the G-buffer stores the index in a float)")
-        from prtbench.api.config import check_memory
 
         work = config.batch_pixels * min(config.train_terms, m) * config.hidden \
             * (config.layers + 1) * 4 * 3
@@ -226,12 +231,10 @@ class NeuralWavelet(Method):
     @classmethod
     def precompute(cls, scene, config: NeuralWaveletConfig, *, progress: bool = True
                    ) -> Artifact:
-        from methods.neural_wavelet.train import train_model
 
         cls.validate(scene, config)
         arrays, stats = train_model(scene, config, progress=progress)
         if progress:
-            import sys
 
             print(f"[neural-wavelet] {config.features}: {stats['data_images']} training images "
                   f"({stats['data_rows']} pixels, Mitsuba {stats['data_render_s']:.1f} s), "
@@ -250,7 +253,6 @@ class NeuralWavelet(Method):
         SH(ωr); per pixel and selected wavelet: H ⊙ W (R), M (R·D), the wavelet half of the
         first layer (D·hidden), the hidden layers, the RGB output and the dot product with L.
         The light's Haar transform and selection are per frame (6N² log N)."""
-        from prtbench.tradeoff import cost
 
         k, hidden = config.light_terms, config.hidden
         if config.features == "hashgrid":
@@ -259,20 +261,20 @@ class NeuralWavelet(Method):
                      "fetches": float(8 * config.levels), "bytes": 0.0}
         else:
             rank = config.vertex_features
-            field = {"madds": float(3 * rank + 30 + rank * cost.TRANSCENDENTAL_MADDS),
+            field = {"madds": float(3 * rank + 30 + rank * ops.TRANSCENDENTAL_MADDS),
                      "fetches": 3.0, "bytes": 0.0}
         sh = (config.reflect_degree + 1) ** 2 if config.reflect_degree >= 0 else 0
-        per_pixel = cost.add_counts(field, {"madds": float((sh + 10) * hidden + 4 * sh + 12)})
+        per_pixel = ops.add_counts(field, {"madds": float((sh + 10) * hidden + 4 * sh + 12)})
         per_term = {"madds": float(rank + rank * config.feature_dim
                                    + config.feature_dim * hidden + hidden
                                    + (config.layers - 1) * (hidden * hidden + hidden)
                                    + 3 * hidden + 3 + 3), "fetches": 1.0, "bytes": 0.0}
         n = 6 * config.cubemap ** 2
-        return cost.add_counts(
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        return ops.add_counts(
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=10, vertex_bytes=52),
             {"bytes": float(4 * 16 * width * height)},  # the G-buffer read back
-            cost.scaled(cost.add_counts(per_pixel, cost.scaled(per_term, k)), covered_pixels),
+            ops.scaled(ops.add_counts(per_pixel, ops.scaled(per_term, k)), covered_pixels),
             {"madds": float(n * 2 * max(config.cubemap.bit_length(), 1) + n)},
             {"bytes": float(memory_bytes)})
 
@@ -288,10 +290,6 @@ class NeuralWaveletRenderer(Renderer):
     def __init__(self, scene, arrays, config: NeuralWaveletConfig, *, width: int, height: int):
         import torch
 
-        from methods.neural_wavelet.gbuffer import GBufferPass
-        from methods.neural_wavelet.model import NeuralWaveletModel
-        from methods.neural_wavelet.train import resolve_device
-
         self.torch = torch
         self.scene, self.config = scene, config
         self.width, self.height = int(width), int(height)
@@ -304,7 +302,6 @@ class NeuralWaveletRenderer(Renderer):
         self.renderer_string = f"{self.gpass.renderer_string} + torch {where}"
         self.weights = None
         if config.selection == "area":
-            from prtbench.transport.wavelet import haar
 
             self.weights = haar.support_solid_angles(config.cubemap).reshape(-1)
         self._cubes: dict[str, np.ndarray] = {}
@@ -313,7 +310,6 @@ class NeuralWaveletRenderer(Renderer):
 
     def light_cube(self, light) -> np.ndarray:
         """(3, 6, N, N) texel-mean radiance of ``light`` (per light, not per frame)."""
-        from prtbench.transport.wavelet.cubemap import light_cubemap
 
         key = light.content_hash()
         if key not in self._cubes:
@@ -327,7 +323,6 @@ class NeuralWaveletRenderer(Renderer):
             return None
         key = (view, light.content_hash())
         if key not in self._direct:
-            from prtbench.render.reference import render_reference
 
             ref = render_reference(self.scene, light, view, width=self.width,
                                    height=self.height, spp=self.config.direct_spp, bounces=0,
@@ -337,10 +332,6 @@ class NeuralWaveletRenderer(Renderer):
 
     def indirect(self, view, light) -> np.ndarray:
         """The learnt indirect radiance (H, W, 3), row 0 at the top: one frame's work."""
-        from methods.neural_wavelet.gbuffer import pixel_rows
-        from methods.neural_wavelet.model import PixelInputs
-        from prtbench.transport.wavelet import haar
-        from prtbench.transport.wavelet.selection import select_terms
 
         torch, w, h = self.torch, self.width, self.height
         self.gpass.draw(view)

@@ -39,6 +39,7 @@ import torch
 
 from methods.neural_wavelet.hashgrid import HashGrid
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.sh import eval_sh
 
 #: Phong exponent at which φ(s) reaches 1.
 PHONG_MAX = 1e4
@@ -118,7 +119,6 @@ def sh_encoding(dirs: torch.Tensor, degree: int) -> torch.Tensor:
     Evaluated with :func:`prtbench.transport.sh.eval_sh` in float64 on the host (the encoding is an
     input, not a parameter: no gradient is needed).
     """
-    from prtbench.transport.sh import eval_sh
 
     values = eval_sh(dirs.detach().cpu().double().numpy(), degree + 1)
     return torch.as_tensor(values, dtype=torch.float32, device=dirs.device)

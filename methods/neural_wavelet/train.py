@@ -40,8 +40,19 @@ import math
 import time
 
 import numpy as np
+from tqdm import tqdm
 
+from methods.neural_wavelet.data import (
+    build_dataset,
+    dataset_key,
+    training_views,
+    without_late_defaults,
+)
+from methods.neural_wavelet.model import PHONG_MAX, ModelSpec, NeuralWaveletModel, PixelInputs
 from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.errors import InvalidInputError
+from prtbench.transport.lights import LUMINANCE_WEIGHTS
+from prtbench.transport.parallel import thread_count
 
 #: Bump when training changes for the same knobs (invalidates cached models).
 MODEL_VERSION = 3  # 3: trained under MKL strict reproducibility (prtbench/__init__.py)
@@ -57,7 +68,6 @@ VARIANCE_CELLS = 48
 
 def model_spec(scene, config):
     """The :class:`~.model.ModelSpec` of ``config`` on ``scene`` (bounds padded by 2 %)."""
-    from methods.neural_wavelet.model import ModelSpec
 
     lo, hi = scene.bounds()
     pad = 0.02 * float(np.linalg.norm(hi - lo)) + 1e-6
@@ -74,8 +84,6 @@ def model_spec(scene, config):
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
-    from prtbench.transport.lights import LUMINANCE_WEIGHTS
-
     return np.asarray(rgb, np.float64) @ LUMINANCE_WEIGHTS
 
 
@@ -89,7 +97,6 @@ def sampling_weights(data: dict, bounds) -> np.ndarray:
     paper's third term (high-frequency image regions, from a low-pass filter of each image) is
     not used.
     """
-    from methods.neural_wavelet.model import PHONG_MAX
 
     lo, hi = np.asarray(bounds[:3]), np.asarray(bounds[3:])
     cell = np.clip(((data["positions"] - lo) / (hi - lo) * VARIANCE_CELLS).astype(np.int64), 0,
@@ -148,8 +155,6 @@ def select_training_terms(coeffs: np.ndarray, count: int, rng) -> np.ndarray:
 def _tensors(data: dict, device: str):
     import torch
 
-    from methods.neural_wavelet.model import PixelInputs
-
     def t(key, dtype=torch.float32):
         return torch.as_tensor(np.ascontiguousarray(data[key]), dtype=dtype, device=device)
 
@@ -158,16 +163,12 @@ def _tensors(data: dict, device: str):
 
 
 def training_key(data_key: str, config) -> str:
-    from methods.neural_wavelet.data import without_late_defaults
-
     knobs = without_late_defaults({k: getattr(config, k) for k in TRAIN_KNOBS})
     return content_key("nw-model", MODEL_VERSION, data_key, knobs)
 
 
 def train_model(scene, config, *, progress: bool = True):
     """Train (or load) the model of ``scene`` for ``config``: (NeuralWaveletModel, stats)."""
-    from methods.neural_wavelet.data import build_dataset, dataset_key, training_views
-    from methods.neural_wavelet.model import NeuralWaveletModel
 
     views = training_views(scene, count=config.train_views, jitter=config.view_jitter,
                            seed=config.seed)
@@ -223,14 +224,12 @@ def train_model(scene, config, *, progress: bool = True):
         losses = []
         bar = None
         if progress:
-            from tqdm import tqdm
 
             bar = tqdm(total=config.steps, desc=f"neural-wavelet {config.features} "
                        f"{scene.name}", unit="step", leave=False)
         # Torch's own default is every core of the machine; PRTBENCH_THREADS (or the affinity)
         # says how many this run was given. On a loaded 2-core machine 1 thread trained 2.5-3.7x
         # faster than 2 (OpenMP waits on the descheduled thread): PRTBENCH_THREADS=1 there.
-        from prtbench.transport.parallel import thread_count
 
         previous_threads = torch.get_num_threads()
         torch.set_num_threads(thread_count())
@@ -265,7 +264,6 @@ def train_model(scene, config, *, progress: bool = True):
                 bar.close()
         train_s = time.perf_counter() - start
         if not np.isfinite(losses).all():
-            from prtbench.api.errors import InvalidInputError
 
             raise InvalidInputError(
                 f"neural-wavelet training diverged (loss {losses[-1]!r} after {len(losses)} "
@@ -296,8 +294,6 @@ def train_model(scene, config, *, progress: bool = True):
 def resolve_device(name: str) -> str:
     """``auto`` -> cuda when torch sees a GPU, else cpu; ``cuda`` without one is an error."""
     import torch
-
-    from prtbench.api.errors import InvalidInputError
 
     if name == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"

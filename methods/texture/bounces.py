@@ -23,14 +23,15 @@ import math
 import sys
 
 import numpy as np
+from tqdm import tqdm
 
 from methods.common.atlas.atlas import AtlasMesh
 from methods.common.atlas.shading import ShadingInputs
 from methods.common.atlas.texels import texel_lookup
 from prtbench.transport.parallel import map_chunks, parallel_chunks
+from prtbench.transport.ray_pattern import RayPattern, ShRotation
 from prtbench.transport.raytrace import Tracer, offset_origins
 from prtbench.transport.sh import eval_sh, lm_of, phong_zonal, tpfl_matrix
-from prtbench.transport.transfer import RayPattern, ShRotation
 
 #: Rays traced and shaded per batch (bounds the (hits, n², 3) float64 scratch to ~40 MB).
 RAYS_PER_BATCH = 1 << 16
@@ -108,7 +109,6 @@ def bounce_textures(scene, atlas: AtlasMesh, shading: ShadingInputs, *, points: 
     list of ndarray, each shape (S, R, R, 3·n²), float64
         T_b with coefficient k, channel c at index 3k + c.
     """
-    from tqdm import tqdm
 
     bands = int(round(math.sqrt(direct.shape[-1])))
     n2 = bands * bands

@@ -22,6 +22,8 @@ import numpy as np
 
 from methods.common.atlas.texels import layer_count
 from prtbench.api.errors import InvalidInputError
+from prtbench.render import prt_shading as _triple
+from prtbench.transport.compress import check_request
 from prtbench.transport.compress import knobs as compress_knobs
 
 #: Binding of the projection table P (cpca.glsl's CpcaProjected).
@@ -45,7 +47,6 @@ def check_form(config, *, sets: int, resolution: int) -> None:
     form = compress_knobs.resolve(config)
     if form is None:
         return
-    from prtbench.transport.compress import check_request
 
     if config.bounces > 0:
         raise InvalidInputError(
@@ -118,7 +119,6 @@ class CompressedTexels:
 
     def light_operator(self, light):
         """rows (M, n²) → (M, n²·3): H_k,c = Σ_i T_i M_ik,c with M = tpfl_matrix(L)."""
-        from prtbench.render import prt_shading as _triple
 
         matrix = _triple.tpfl_matrix_rgb(light.sh(self.sh_bands), self.sh_bands).astype(
             np.float64)  # (n², n², 3)

@@ -40,11 +40,19 @@ import numpy as np
 from methods.common.atlas.atlas import AtlasMesh, render_gbuffer
 from methods.common.atlas.shading import ShadingInputs, distinct_normal_maps
 from methods.common.atlas.texels import dilate, to_storage
-from prtbench.api.config import check_memory, knob, memory_budget, seed_knob
+from methods.texture.bounces import bounce_textures
+from methods.texture.compressed import check_form, texel_signals
+from methods.texture.renderer import TextureRenderer
+from prtbench.api import config as config_mod
+from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.config import check_memory, knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
+from prtbench.render import ops
 from prtbench.scene.model import Texture
 from prtbench.transport.compress import knobs as compress_knobs
+from prtbench.transport.lights import get_light
+from prtbench.transport.transfer import compute_transfer
 
 
 @dataclass(frozen=True)
@@ -88,6 +96,8 @@ class TextureConfig:
 class TextureMethod(Method):
     """Shared precompute of both transfer-texture methods; subclasses pick the product."""
 
+    storage = "per-texel"
+
     Config = TextureConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
@@ -110,8 +120,6 @@ class TextureMethod(Method):
 
     @classmethod
     def validate(cls, scene, config: TextureConfig) -> None:
-        from methods.texture.compressed import check_form
-
         check_form(config, sets=len(scene.objects) if config.texture_sets else 1,
                    resolution=config.texture_resolution)
         for obj in scene.objects:
@@ -145,7 +153,7 @@ class TextureMethod(Method):
         sets = len(scene.objects) if config.texture_sets else 1
         per_texel = 80 + 28 * config.sh_bands**2 * (1 + config.bounces)
         res = config.texture_resolution
-        fits = int(math.sqrt(memory_budget() / (sets * per_texel)))
+        fits = int(math.sqrt(config_mod.memory_budget() / (sets * per_texel)))
         check_memory(f"method '{cls.name}' texture_resolution={res} ({sets} texture(s), "
                      f"sh_bands={config.sh_bands}, bounces={config.bounces})",
                      sets * res * res * per_texel, accepted=f"texture_resolution <= {fits}")
@@ -154,14 +162,10 @@ class TextureMethod(Method):
 
     @staticmethod
     def bake_light(scene, config: TextureConfig):
-        from prtbench.transport.lights import get_light
-
         return get_light(config.bounce_light or scene.default_light)
 
     @classmethod
     def precompute(cls, scene, config: TextureConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.transfer import compute_transfer
-
         cls.validate(scene, config)
         times: dict[str, float] = {}
         clock = time.perf_counter()
@@ -204,7 +208,6 @@ class TextureMethod(Method):
                        "filled": filled.astype(np.uint8), "texel_chart": texel_chart,
                        **atlas.arrays()})
         if form is not None:
-            from methods.texture.compressed import texel_signals
 
             clock = time.perf_counter()
             compressed, fit_meta = compress_knobs.compress_signals(
@@ -235,7 +238,6 @@ class TextureMethod(Method):
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: TextureConfig, *, width: int,
                  height: int):
-        from methods.texture.renderer import TextureRenderer
 
         return TextureRenderer(scene, artifact, config, product=cls.product, width=width,
                                height=height)
@@ -249,7 +251,6 @@ class TextureMethod(Method):
         and 3n² adds per baked bounce, then Phong shading of H (shade_transferred). The texture
         resolution changes what is resident, not the per-pixel work: ``ops`` does not grow
         with it. Normal maps (one more lookup) are not counted."""
-        from prtbench.tradeoff import cost
 
         n, n2 = config.sh_bands, config.sh_bands**2
         texel = 16 if config.storage == "float32" else 8
@@ -259,9 +260,9 @@ class TextureMethod(Method):
         fetches = layers + bounce_layers
         lookups = {"madds": 3.0 * n2 * config.bounces, "fetches": float(fetches),
                    "bytes": float(fetches * taps * texel)}
-        product = (cost.triple_product_counts(n) if cls.product == "tp"
-                   else {"madds": cost.tpfl_product_madds(n)})
-        frame = {"bytes": cost.gamma_bytes(n) if cls.product == "tp" else 0.0}
+        product = (ops.triple_product_counts(n) if cls.product == "tp"
+                   else {"madds": ops.tpfl_product_madds(n)})
+        frame = {"bytes": ops.gamma_bytes(n) if cls.product == "tp" else 0.0}
         form = compress_knobs.resolve(config)
         if form is not None:
             # texture_cpca.glsl per tap (4 bilinear, 1 nearest): an id, ⌈n′/4⌉ weight texels
@@ -273,20 +274,18 @@ class TextureMethod(Method):
                        "bytes": 4.0 * taps * tap_fetches}
             product = {}
             frame = {"madds": 3.0 * k * (1 + m) * n2 * n2}
-        shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
-        per_pixel = cost.add_counts(lookups, product, shade)
-        return cost.add_counts(
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+        shade = {"madds": ops.shade_transferred_madds(n) + 3 + 2 * ops.TRANSCENDENTAL_MADDS}
+        per_pixel = ops.add_counts(lookups, product, shade)
+        return ops.add_counts(
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=14, vertex_bytes=92,
                                depth_prepass=config.depth_prepass),
-            cost.scaled(per_pixel, covered_pixels), frame)
+            ops.scaled(per_pixel, covered_pixels), frame)
 
 
 def _cached_bounces(scene, atlas, shading, config, *, points, normals, covered_index, transfer,
                     light, dilate, progress) -> np.ndarray:
     """(k, S, R, R, 3n²) bounce textures, cached by content (texture-tp and -tpfl share them)."""
-    from methods.texture.bounces import bounce_textures
-    from prtbench.api.cache import cached_arrays, content_key
 
     key = content_key("texture-bounces", TextureMethod.precompute_version, scene.content_hash(),
                       atlas.uvs, atlas.faces, transfer.astype(np.float32), light.content_hash(),

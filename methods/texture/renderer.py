@@ -16,10 +16,12 @@ from methods.common.atlas.atlas import AtlasMesh
 from methods.common.atlas.shading import ShadingInputs, normal_map_texture
 from methods.common.atlas.texels import layer_count, rgba_layers
 from methods.texture import SHADER_DIR
+from methods.texture.compressed import CompressedTexels
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes, Renderer
 from prtbench.render import gl
 from prtbench.render import prt_shading as _triple
+from prtbench.render.raster import clip_planes
 from prtbench.transport.compress import knobs as compress_knobs
 
 
@@ -49,7 +51,6 @@ class TextureRenderer(Renderer):
         bounce = arrays.get("bounce")
         self.cpca = None
         if compress_knobs.is_compressed(arrays):  # PCA / VQ / CPCA form (.compressed)
-            from methods.texture.compressed import CompressedTexels
 
             filled = np.asarray(arrays["filled"], bool)
             model = compress_knobs.load_model(arrays, n_signals=int(filled.sum()))
@@ -171,8 +172,6 @@ class TextureRenderer(Renderer):
 
     # -- drawing ----------------------------------------------------------------------------
     def _draw(self, view, light) -> None:
-        from prtbench.render.raster import clip_planes
-
         near, far = clip_planes(self.scene, view)
         clip_from_world = (view.clip_from_camera(self.width / self.height, near, far)
                            @ view.camera_from_world()).T.astype(np.float32).tobytes()

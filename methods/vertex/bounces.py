@@ -26,6 +26,11 @@ import math
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.parallel import map_chunks, parallel_chunks, single_threaded_blas
+from prtbench.transport.ray_pattern import RayPattern
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.sh import eval_sh, lm_of, phong_zonal
+from prtbench.transport.transfer import progress_bar
 
 #: Rays traced per chunk of points (bounds the per-ray SH and radiance rows to ~20 MB).
 _RAYS_PER_CHUNK = 1 << 14
@@ -37,8 +42,6 @@ class _Reflectance:
     """Per-object kd, ks and Phong zonal kernels √(4π/(2l+1))·g_l(s), by merged face."""
 
     def __init__(self, scene, bands: int):
-        from prtbench.transport.sh import lm_of, phong_zonal
-
         ls, _ = lm_of(bands)
         self.kd = np.array([o.material.kd for o in scene.objects], np.float64)
         self.ks = np.array([o.material.ks for o in scene.objects], np.float64)
@@ -56,7 +59,6 @@ class _Reflectance:
         normal, wo : ndarray, shape (H, 3)
             Unit shading normal at the hit and unit direction back towards the gathering point.
         """
-        from prtbench.transport.sh import eval_sh
 
         n2 = self.bands * self.bands
         out = np.zeros((len(obj), n2, 3))
@@ -92,10 +94,6 @@ def bounce_matrices(scene, direct: np.ndarray, *, bounces: int, rays_per_point: 
     ndarray, shape (V, n², n², 3), float32
         ``out[v, k, i, c]``: H_kc = Σ_i out[v, k, i, c]·L_ic.
     """
-    from prtbench.transport.parallel import map_chunks, parallel_chunks
-    from prtbench.transport.raytrace import Tracer, offset_origins
-    from prtbench.transport.sh import eval_sh
-    from prtbench.transport.transfer import RayPattern, _progress, _single_threaded_blas
 
     positions, vertex_normals, faces, object_of_face = scene.merged()
     m0 = np.asarray(direct, dtype=np.float32)
@@ -138,7 +136,7 @@ def bounce_matrices(scene, direct: np.ndarray, *, bounces: int, rays_per_point: 
                     out[sl, :, c] = np.matmul(r[:, c:c + 1, :], mats[..., c])[:, 0, :]
         return out
 
-    with _progress(bounces * len(positions), f"glossy bounces {scene.name}", progress) as bar:
+    with progress_bar(bounces * len(positions), f"glossy bounces {scene.name}", progress) as bar:
         for b in range(1, bounces + 1):
             pattern = RayPattern(len(positions), m, seed + b)
 
@@ -167,7 +165,7 @@ def bounce_matrices(scene, direct: np.ndarray, *, bounces: int, rays_per_point: 
                 return (out * (math.pi / m)).reshape(count, n2, n2, 3).astype(np.float32)
 
             current = np.empty((len(positions), n2, n2, 3), dtype=np.float32)
-            with _single_threaded_blas():
+            with single_threaded_blas():
                 for values, sl in zip(map_chunks(chunk, chunks), chunks):
                     current[sl] = values
                     bar.update(sl.stop - sl.start)

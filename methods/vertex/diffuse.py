@@ -16,11 +16,17 @@ import numpy as np
 
 from methods.common.materials import check_diffuse_constant_kd
 from methods.vertex import SHADER_DIR
+from prtbench.api import config as config_mod
 from prtbench.api.config import knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
+from prtbench.render.ops import add_counts, raster_counts
 from prtbench.render.raster import RasterRenderer
+from prtbench.transport.bounce_transfer import compute_bounce_transfer
+from prtbench.transport.compress import check_request
 from prtbench.transport.compress import knobs as compress_knobs
+from prtbench.transport.compress.buffers import CpcaBuffers
+from prtbench.transport.transfer import compute_transfer
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,8 @@ def transfer_dimension(config: VertexConfig) -> int:
 class VertexPRT(Method):
     """Sloan 2002 diffuse PRT shaded in the vertex shader."""
 
+    storage = "per-vertex"
+
     Config = VertexConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
@@ -76,18 +84,14 @@ class VertexPRT(Method):
     def validate(cls, scene, config: VertexConfig) -> None:
         form = compress_knobs.resolve(config)
         if form is not None:
-            from prtbench.api.config import memory_budget
-            from prtbench.transport.compress import check_request
 
             check_request(n_signals=scene.n_vertices, dimension=transfer_dimension(config),
                           clusters=form.clusters, pca_vectors=form.pca_vectors,
-                          max_bytes=memory_budget(), what=f"vertices of scene '{scene.name}'")
+                          max_bytes=config_mod.memory_budget(), what=f"vertices of scene '{scene.name}'")
         check_diffuse_constant_kd("vertex", scene)
 
     @classmethod
     def precompute(cls, scene, config: VertexConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.transfer import compute_bounce_transfer, compute_transfer
-
         positions, normals, _, _ = scene.merged()
         transfer = compute_transfer(scene, positions, normals, bands=config.sh_bands,
                                     rays_per_point=config.rays_per_point, seed=config.seed,
@@ -119,7 +123,6 @@ class VertexPRT(Method):
                   covered_pixels: int, width: int, height: int, memory_bytes: int):
         """vertex_prt.vert: per vertex n² SSBO loads (RGB when bounces are baked) and an RGB
         madd each, then kd/π; interpolated_radiance.frag only interpolates the radiance (3 varyings)."""
-        from prtbench.tradeoff.cost import add_counts, raster_counts
 
         coeffs = config.sh_bands**2
         channels = 3 if config.bounces > 0 else 1
@@ -176,7 +179,6 @@ class CompressedVertexRenderer(RasterRenderer):
 
     def __init__(self, scene, artifact: Artifact, config: VertexConfig, *, width: int,
                  height: int):
-        from prtbench.transport.compress.buffers import CpcaBuffers
 
         self.model = compress_knobs.load_model(artifact.arrays, n_signals=scene.n_vertices)
         self.sh_bands = config.sh_bands

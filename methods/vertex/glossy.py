@@ -26,16 +26,29 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from methods.vertex import SHADER_DIR
-from prtbench.api.config import knob, seed_knob
+from methods.common.materials import validate_constant_materials
+from methods.vertex.bounces import bounce_matrices
+from methods.vertex.glossy_renderer import (
+    MODE_MATRIX,
+    MODE_TP,
+    MODE_TPFL,
+    CompressedMatrixRenderer,
+    GlossyVertexRenderer,
+    format_size,
+    storage_limit_message,
+)
+from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.config import check_memory, knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
-from prtbench.render import prt_shading as _triple
-from prtbench.render.raster import RasterRenderer
+from prtbench.render import gl, ops
+from prtbench.transport.compress import check_request
 from prtbench.transport.compress import knobs as compress_knobs
-
-#: GLSL selector of how the vertex shader forms H (``GLOSSY_MODE`` in vertex_glossy.vert).
-MODE_TP, MODE_TPFL, MODE_MATRIX = 0, 1, 2
+from prtbench.transport.parallel import map_chunks, single_threaded_blas
+from prtbench.transport.ray_pattern import RayPattern
+from prtbench.transport.raytrace import Tracer, offset_origins
+from prtbench.transport.sh import eval_sh
+from prtbench.transport.transfer import check_inputs, compute_transfer, point_chunks, progress_bar
 
 _PROFILES = {
     "smoke": {"rays_per_point": 128, "sh_bands": 4},
@@ -79,35 +92,9 @@ class SloanMatrixConfig:
     pca_vectors: int | None = compress_knobs.pca_vectors_knob()
 
 
-def _validate_materials(method: str, scene) -> None:
-    for obj in scene.objects:
-        material = obj.material
-        if material.is_textured:
-            raise InvalidInputError(
-                f"method '{method}' takes constant kd, ks and shininess per object; '{obj.name}' "
-                f"in scene '{scene.name}' is textured; use a transfer-texture method")
-        if material.normal_map is not None:
-            raise InvalidInputError(
-                f"method '{method}' shades per vertex and cannot apply the normal map of "
-                f"'{obj.name}' in scene '{scene.name}'; use a transfer-texture method or a scene "
-                "without normal maps")
-
-
-def material_attributes(scene) -> dict[str, np.ndarray]:
-    """Per-vertex ks (V, 3) and shininess (V, 1) float32 in merged order (kd is added by
-    :class:`RasterRenderer`)."""
-    ks = np.concatenate([np.broadcast_to(np.asarray(o.material.ks, np.float32),
-                                         (o.mesh.n_vertices, 3)) for o in scene.objects])
-    shininess = np.concatenate([np.full((o.mesh.n_vertices, 1), o.material.shininess, np.float32)
-                                for o in scene.objects])
-    return {"ks": ks, "shininess": shininess}
-
-
 # --- precompute -------------------------------------------------------------------------------
 
 def _vertex_transfer(scene, config, *, progress: bool) -> np.ndarray:
-    from prtbench.transport.transfer import compute_transfer
-
     positions, normals, _, _ = scene.merged()
     return np.asarray(compute_transfer(scene, positions, normals, bands=config.sh_bands,
                                        rays_per_point=config.rays_per_point, seed=config.seed,
@@ -125,7 +112,7 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
     """Sloan's shadowed glossy transfer matrices M_ki(p) = ∫ Y_k Y_i V(p, ω) max(n·ω, 0) dω.
 
     Same rays as :func:`prtbench.transport.transfer.compute_transfer` for the same ``seed`` (its
-    :class:`~prtbench.transport.transfer.RayPattern` and origin offset), so the first row is the transfer
+    :class:`~prtbench.transport.ray_pattern.RayPattern` and origin offset), so the first row is the transfer
     vector over √(4π): M_0i = T_i / √(4π) up to rounding. Estimator: M ≈ π/M_r Σ_j V_j y_j y_jᵀ
     over M_r cosine-weighted directions; M is symmetric.
 
@@ -146,18 +133,8 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
     -------
     ndarray, shape (N, n², n²), float32
     """
-    from prtbench.transport.parallel import map_chunks
-    from prtbench.transport.raytrace import Tracer, offset_origins
-    from prtbench.transport.sh import eval_sh
-    from prtbench.transport.transfer import (
-        RayPattern,
-        _check_inputs,
-        _chunks,
-        _progress,
-        _single_threaded_blas,
-    )
 
-    p, n = _check_inputs(points, normals, bands, rays_per_point)
+    p, n = check_inputs(points, normals, bands, rays_per_point)
     m, n2 = int(rays_per_point), bands * bands
     tracer = Tracer.from_scene(scene)
     pattern = RayPattern(len(p), m, seed)
@@ -178,19 +155,13 @@ def compute_transfer_matrices(scene, points: np.ndarray, normals: np.ndarray, *,
 
     # Chunks on the precompute threads (prtbench.transport.parallel.map_chunks): fixed boundaries and
     # per-point rays, so every thread count gives the same bits.
-    chunks = _chunks(len(p), m, chunk_points)
-    with _progress(len(p), f"transfer matrices {scene.name}", progress) as bar, \
-            _single_threaded_blas():
+    chunks = point_chunks(len(p), m, chunk_points)
+    with progress_bar(len(p), f"transfer matrices {scene.name}", progress) as bar, \
+            single_threaded_blas():
         for values, sl in zip(map_chunks(chunk, chunks), chunks):
             out[sl] = values
             bar.update(sl.stop - sl.start)
     return out
-
-
-def _format_bytes(size: int) -> str:
-    if size >= 2**30:
-        return f"{size / 2**30:.2f} GiB"
-    return f"{size / 2**20:.1f} MiB" if size >= 2**20 else f"{size / 2**10:.0f} KiB"
 
 
 def matrix_bytes(n_vertices: int, bands: int, *, channels: int = 1) -> int:
@@ -208,6 +179,8 @@ def matrix_channels(config) -> int:
 class _GlossyVertexMethod(Method):
     """Shared validation and renderer construction of the glossy vertex methods."""
 
+    storage = "per-vertex"
+
     profile_overrides = _PROFILES
     #: As for ``vertex``: a subdivided ground under the sun, where shadows are what is measured.
     regression_case = {"variant": "glossy", "light": "sun",
@@ -220,7 +193,7 @@ class _GlossyVertexMethod(Method):
 
     @classmethod
     def validate(cls, scene, config) -> None:
-        _validate_materials(cls.name, scene)
+        validate_constant_materials(cls.name, scene)
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config, *, width: int,
@@ -238,7 +211,6 @@ class _GlossyVertexMethod(Method):
         list (vertex-tp), the n² × n² TPFL matrix (vertex-tpfl) or n⁴ loads of the transfer
         matrix and an RGB madd each (sloan-matrix); then Phong shading of H towards the eye
         (shade_transferred). The fragment stage interpolates the radiance (3 varyings)."""
-        from prtbench.tradeoff import cost
 
         n = config.sh_bands
         form = compress_knobs.resolve(config) if cls._mode == MODE_MATRIX else None
@@ -256,16 +228,16 @@ class _GlossyVertexMethod(Method):
             product = {"madds": 3.0 * n**4, "fetches": float(c * n**4), "bytes": 4.0 * c * n**4}
         else:
             loads = {"madds": 0.0, "fetches": float(n * n), "bytes": 4.0 * n * n}
-            product = (cost.triple_product_counts(n) if cls._mode == MODE_TP
-                       else {"madds": cost.tpfl_product_madds(n)})
-            product = cost.add_counts(loads, product)
-        shade = {"madds": cost.shade_transferred_madds(n) + 3 + 2 * cost.TRANSCENDENTAL_MADDS}
-        per_vertex = cost.add_counts(product, shade)
-        frame = {"bytes": cost.gamma_bytes(n) if cls._mode == MODE_TP else 0.0}
-        return cost.add_counts(cpu,
-            cost.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+            product = (ops.triple_product_counts(n) if cls._mode == MODE_TP
+                       else {"madds": ops.tpfl_product_madds(n)})
+            product = ops.add_counts(loads, product)
+        shade = {"madds": ops.shade_transferred_madds(n) + 3 + 2 * ops.TRANSCENDENTAL_MADDS}
+        per_vertex = ops.add_counts(product, shade)
+        frame = {"bytes": ops.gamma_bytes(n) if cls._mode == MODE_TP else 0.0}
+        return ops.add_counts(cpu,
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
                                pixels=covered_pixels, varyings=3, vertex_bytes=52),
-            cost.scaled(per_vertex, scene_vertices), frame)
+            ops.scaled(per_vertex, scene_vertices), frame)
 
 
 class _TransferVectorMethod(_GlossyVertexMethod):
@@ -331,8 +303,6 @@ class SloanMatrix(_GlossyVertexMethod):
                 f"{config.compress}: the compressed forms hold grey matrices only; accepted: "
                 "bounces=0 with compress, or compress=none with bounces")
         if form is not None:
-            from prtbench.api.config import check_memory
-            from prtbench.transport.compress import check_request
 
             # The matrices are computed in host memory before they are compressed; only the
             # compressed form is kept (and limited by max_bytes).
@@ -355,12 +325,11 @@ class SloanMatrix(_GlossyVertexMethod):
             raise InvalidInputError(
                 f"scene '{scene.name}' has {scene.n_triangles} triangles / {scene.n_vertices} "
                 f"vertices, over sloan-matrix's limit of {limit} vertices at "
-                f"sh_bands={config.sh_bands} (max_bytes={_format_bytes(config.max_bytes)} of "
+                f"sh_bands={config.sh_bands} (max_bytes={format_size(config.max_bytes)} of "
                 f"transfer matrices, V × {floats}{config.sh_bands**4} floats; this scene needs "
-                f"{_format_bytes(size)}); {hint}, or raise max_bytes")
+                f"{format_size(size)}); {hint}, or raise max_bytes")
         # The renderer uploads the matrices as one shader storage block: refuse here, before
         # the precompute (45 min at 10⁶ triangles on 2 cores), what it would refuse anyway.
-        from prtbench.render import gl
 
         try:
             limit = gl.storage_block_limit()
@@ -384,7 +353,6 @@ class SloanMatrix(_GlossyVertexMethod):
                 rays_per_point=config.rays_per_point, seed=config.seed, progress=progress,
                 visibility=config.visibility)
             if matrix_channels(config) > 1:
-                from methods.vertex.bounces import bounce_matrices
 
                 matrices = bounce_matrices(scene, matrices, bounces=config.bounces,
                                            rays_per_point=config.rays_per_point,
@@ -398,7 +366,6 @@ class SloanMatrix(_GlossyVertexMethod):
             return Artifact(cls.name, compute(), meta)
         # Compressed forms share one cached matrix precompute (credited to their precompute
         # time), and only the compressed form is stored in the artifact.
-        from prtbench.api.cache import cached_arrays, content_key
 
         key = content_key("sloan-matrices", cls.precompute_version, scene.content_hash(),
                           config.sh_bands, config.rays_per_point, config.seed, config.visibility)
@@ -409,120 +376,3 @@ class SloanMatrix(_GlossyVertexMethod):
         return Artifact(cls.name, arrays, {**meta, **fit})
 
 
-# --- renderer ---------------------------------------------------------------------------------
-
-def storage_limit_message(key: str, nbytes: int, limit: int, *, rgb: bool, what: str = "") -> str:
-    """The one-line refusal of a per-vertex buffer over the GL's shader storage block limit."""
-    return (f"{what}{key} buffer of {_format_bytes(nbytes)} exceeds this GL's shader storage "
-            f"block limit of {_format_bytes(limit)}; use fewer sh_bands or a coarser mesh"
-            + (" (bounces make the matrices RGB: 3× the floats)" if rgb else ""))
-
-
-class GlossyVertexRenderer(RasterRenderer):
-    """Per-vertex H (TP, TPFL or matrix) and Phong shading; interpolated radiance.
-
-    Parameters
-    ----------
-    scene : Scene
-    artifact : Artifact
-        ``transfer`` (V, n²) for TP/TPFL or ``matrices`` (V, n², n²) for the matrix mode.
-    mode : int
-        :data:`MODE_TP`, :data:`MODE_TPFL` or :data:`MODE_MATRIX`.
-    sh_bands : int
-    width, height : int
-    """
-
-    shader_dirs = (SHADER_DIR,)
-
-    def __init__(self, scene, artifact: Artifact, *, mode: int, sh_bands: int, width: int,
-                 height: int):
-        key = "matrices" if mode == MODE_MATRIX else "transfer"
-        data = np.ascontiguousarray(artifact.arrays[key], dtype=np.float32)
-        n2 = sh_bands * sh_bands
-        expected = (scene.n_vertices, n2, n2) if mode == MODE_MATRIX else (scene.n_vertices, n2)
-        # Interreflected matrices (bounces) are RGB: (V, n², n², 3), read as MATRIX_RGB.
-        rgb = mode == MODE_MATRIX and data.ndim == 4
-        if rgb:
-            expected = expected + (3,)
-        if data.shape != expected:
-            raise InvalidInputError(f"artifact '{key}' has shape {data.shape}; expected {expected} "
-                                    f"for scene '{scene.name}' with sh_bands={sh_bands}")
-        self.mode, self.sh_bands = mode, sh_bands
-        super().__init__(scene, width=width, height=height, vertex_shader="vertex_glossy.vert",
-                         fragment_shader="interpolated_radiance.frag",
-                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": mode,
-                                  **({"MATRIX_RGB": 1} if rgb else {})},
-                         extra_attributes=material_attributes(scene))
-        from prtbench.render import gl
-
-        limit = gl.storage_block_limit(self.ctx)
-        if limit and data.nbytes > limit:
-            RasterRenderer.release(self)
-            raise InvalidInputError(storage_limit_message(key, data.nbytes, limit, rgb=rgb))
-        # Vertex-major: transfer[v·n² + i], matrices[v·n⁴ + k·n² + i] or, RGB,
-        # matrices[(v·n⁴ + k·n² + i)·3 + c].
-        self.data_buffer = self.ctx.buffer(data.tobytes())
-        self.triple = _triple.TripleProductBuffers(self.ctx, sh_bands, gamma=mode == MODE_TP)
-        self._resident = [self.data_buffer]
-
-    def _bind(self, view, light) -> None:
-        self.data_buffer.bind_to_storage_buffer(0)
-        if self.mode == MODE_TP:
-            self.triple.bind_gamma()
-        elif self.mode == MODE_TPFL:
-            self.triple.bind_tpfl(light)
-        if "light_sh" in self.program:  # TPFL folds the light into M: the uniform is unused
-            coeffs = light.sh(self.sh_bands).astype(np.float32)  # (n², 3)
-            self.program["light_sh"].write(np.ascontiguousarray(coeffs).tobytes())
-
-    def memory_bytes(self) -> int:
-        """Per-vertex transfer data plus the Γ list (TP) or the current TPFL matrix."""
-        return int(self.data_buffer.size) + self.triple.memory_bytes()
-
-    def release(self) -> None:
-        super().release()
-        self.triple.release()
-
-
-class CompressedMatrixRenderer(RasterRenderer):
-    """``sloan-matrix`` from a PCA / VQ / CPCA form of the flattened n² × n² matrices (the
-    lecture's CPCA for changing view, Sloan 2003).
-
-    Per frame the CPU projects the light's SH onto every cluster's mean and basis matrices,
-    P_kj = M_kj · L (n² RGB vectors each); the vertex shader (vertex_glossy.vert, GLOSSY_MODE 2
-    with cpca.glsl) forms H = P_c0 + Σ_j w_j P_cj and shades it like the uncompressed matrix.
-    Resident: cluster ids, weights and the K × (1 + n′) × n² RGB table on the GPU, means and
-    bases on the CPU (:class:`~prtbench.transport.compress.buffers.CpcaBuffers`).
-    """
-
-    shader_dirs = (SHADER_DIR,)
-
-    def __init__(self, scene, artifact: Artifact, *, sh_bands: int, width: int, height: int):
-        from prtbench.transport.compress.buffers import CpcaBuffers
-
-        self.model = compress_knobs.load_model(artifact.arrays, n_signals=scene.n_vertices)
-        self.sh_bands = sh_bands
-        n2 = sh_bands * sh_bands
-        if self.model.dimension != n2 * n2:
-            raise InvalidInputError(f"compressed matrices of dimension {self.model.dimension}; "
-                                    f"expected {n2 * n2} for sh_bands={sh_bands}")
-        super().__init__(scene, width=width, height=height, vertex_shader="vertex_glossy.vert",
-                         fragment_shader="interpolated_radiance.frag",
-                         defines={"SH_BANDS": sh_bands, "GLOSSY_MODE": MODE_MATRIX,
-                                  "CPCA_CLUSTERS": self.model.n_clusters,
-                                  "PCA_VECTORS": self.model.pca_vectors, "CPCA_OUTPUTS": n2},
-                         extra_attributes=material_attributes(scene))
-        self.cpca = CpcaBuffers(self.ctx, self.model, outputs=n2)
-        self._resident = self.cpca.buffers()
-
-    def light_operator(self, light):
-        """rows (M, n⁴) -> (M, n²·3): each row as a matrix M_ki times the light's L_i (RGB)."""
-        coeffs = light.sh(self.sh_bands).astype(np.float64)  # (n², 3)
-        n2 = self.sh_bands**2
-        return lambda rows: (rows.reshape(len(rows), n2, n2) @ coeffs).reshape(len(rows), -1)
-
-    def _bind(self, view, light) -> None:
-        self.cpca.bind(self.light_operator(light))
-
-    def memory_bytes(self) -> int:
-        return self.cpca.memory_bytes()

@@ -43,10 +43,13 @@ import numpy as np
 
 from methods.wavelet import SHADER_DIR
 from methods.wavelet.relight import Relighter, host_frame_times
+from prtbench.api.config import check_memory, format_bytes
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes
 from prtbench.render.raster import RasterRenderer
+from prtbench.transport.compress import check_request
 from prtbench.transport.compress import knobs as compress_knobs
+from prtbench.transport.compress.buffers import CpcaBuffers
 from prtbench.transport.wavelet.sparse import SparseTransport
 
 #: k-means seed of the fit (wavelet-vertex has no seed knob: its transport is deterministic).
@@ -74,8 +77,6 @@ def fit_bytes(*, vertices: int, dimension: int, clusters: int, pca_vectors: int)
 def check_compress(scene, config, *, dimension: int) -> None:
     """Refuse, before any work, a form that cannot be made: K outside 1..V, n′ outside 0..d,
     or a fit over this machine's memory (one line naming the bytes)."""
-    from prtbench.api.config import check_memory, format_bytes
-    from prtbench.transport.compress import check_request
 
     form = compress_knobs.resolve(config)
     if form is None:
@@ -150,8 +151,6 @@ class CompressedWaveletVertexRenderer(RasterRenderer):
     shader_dirs = (SHADER_DIR,)
 
     def __init__(self, scene, artifact: Artifact, config, *, width: int, height: int):
-        from prtbench.transport.compress.buffers import CpcaBuffers
-
         self.config = config
         self.model = compress_knobs.load_model(artifact.arrays, n_signals=scene.n_vertices)
         m = 6 * config.cubemap**2

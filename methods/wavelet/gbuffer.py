@@ -2,13 +2,16 @@
 
 For per-pixel precomputes of a fixed view (``wavelet-image``). The pixel-centre rays are those
 of :meth:`View.primary_rays`, the rays of the masked metrics' geometry mask
-(:func:`prtbench.bench.runner.geometry_mask`), so the covered pixels are the measured ones; back faces
+(:func:`prtbench.transport.raytrace.geometry_mask`), so the covered pixels are the measured ones; back faces
 are left out (black), surfaces being one-sided (DESIGN.md §4).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from prtbench.scene.model import Texture
+from prtbench.transport.raytrace import Tracer
 
 
 def pixel_gbuffer(scene, view, *, width: int, height: int) -> dict[str, np.ndarray]:
@@ -22,7 +25,6 @@ def pixel_gbuffer(scene, view, *, width: int, height: int) -> dict[str, np.ndarr
         (reflect(ωo, n), ωo towards the eye) (P, 3) float64/float32; ``kd``, ``ks`` (P, 3)
         float32; ``shininess`` (P,) float32; ``glossy`` (P,) float32 1 where ks > 0.
     """
-    from prtbench.transport.raytrace import Tracer
 
     tracer = Tracer.from_scene(scene)
     origins, dirs = view.primary_rays(width, height)
@@ -68,7 +70,6 @@ def pixel_gbuffer(scene, view, *, width: int, height: int) -> dict[str, np.ndarr
 
 def _sample(value, uv: np.ndarray, channels: int) -> np.ndarray:
     """(P, channels) of a constant or textured material value at ``uv``."""
-    from prtbench.scene.model import Texture
 
     if isinstance(value, Texture):
         out = value.sample(uv)

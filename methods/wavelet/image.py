@@ -40,6 +40,7 @@ import numpy as np
 
 from methods.wavelet.gbuffer import pixel_gbuffer
 from methods.wavelet.relight import SELECTIONS, STORAGES, Relighter, check_wavelet_config
+from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.config import knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import (
@@ -50,7 +51,10 @@ from prtbench.api.method import (
     register_method,
     wall_frame_times,
 )
+from prtbench.transport.sh import eval_sh, phong_lobe
+from prtbench.transport.wavelet.cubemap import check_resolution, subsample_pattern
 from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet.transport import cached_transport, cosines
 
 LIGHTINGS = ("wavelet", "sh")
 #: Bump when the per-pixel transport (G-buffer, lobes) changes (part of its cache key).
@@ -106,6 +110,8 @@ def _view_dict(view) -> dict:
 class WaveletImage(Method):
     """Ng 2003 per-pixel Haar transport for one fixed view (glossy), relit with k terms."""
 
+    storage = "per-pixel"
+
     Config = WaveletImageConfig
     precompute_version = "1"
     main_knobs = ("light_terms", "cubemap")
@@ -156,8 +162,6 @@ class WaveletImage(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletImageConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.wavelet.transport import cached_transport
-
         cls.validate(scene, config)
         m, kept = _check_config(scene, config)
         view = scene.trajectory.views[0]
@@ -165,9 +169,6 @@ class WaveletImage(Method):
         lobes = _lobes(scene)
 
         def specular(sl: slice, dirs_t: np.ndarray) -> np.ndarray:
-            from prtbench.transport.sh import phong_lobe
-            from prtbench.transport.wavelet.transport import cosines
-
             lobe = phong_lobe(cosines(g["reflect"][sl], dirs_t), g["shininess"][sl, None])
             lobe *= g["glossy"][sl, None]  # diffuse pixels: exact zeros, never stored
             return np.stack([np.ones_like(lobe), lobe], axis=1).astype(np.float32)
@@ -211,9 +212,6 @@ def sh_light_cubemap(light, n: int, bands: int) -> np.ndarray:
     approximation), cached per (light, N, bands). The projection is the light's own
     (:meth:`EnvironmentLight.sh`, exact quadrature of the lat-long map), evaluated at
     :data:`SH_TEXEL_SAMPLES`² area-weighted subsamples per texel."""
-    from prtbench.api.cache import cached_arrays, content_key
-    from prtbench.transport.sh import eval_sh
-    from prtbench.transport.wavelet.cubemap import check_resolution, subsample_pattern
 
     n = check_resolution(n)
 

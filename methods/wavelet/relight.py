@@ -14,7 +14,11 @@ import numpy as np
 from prtbench.api.config import check_memory
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import FrameTimes, wall_frame_times
-from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet import haar
+from prtbench.transport.wavelet.cubemap import check_resolution, light_cubemap
+from prtbench.transport.wavelet.selection import select_terms
+from prtbench.transport.wavelet.sparse import VALUE_BYTES, SparseTransport, row_dtype
+from prtbench.transport.wavelet.transport import keep_count
 
 SELECTIONS = ("magnitude", "area", "transport")
 STORAGES = ("float32", "float16", "int8")
@@ -39,9 +43,6 @@ def check_wavelet_config(method: str, config, *, points: int, what: str) -> tupl
     what : str
         What the points are ("vertices", "texels").
     """
-    from prtbench.transport.wavelet.cubemap import check_resolution
-    from prtbench.transport.wavelet.sparse import VALUE_BYTES, row_dtype
-    from prtbench.transport.wavelet.transport import keep_count
 
     n = check_resolution(config.cubemap, what="cubemap")
     m = 6 * n * n
@@ -83,7 +84,6 @@ class Relighter:
 
     def __init__(self, transport: SparseTransport | None, config, *,
                  transport_weight: np.ndarray | None = None):
-        from prtbench.transport.wavelet import haar
 
         self.transport = transport
         self.n, self.k, self.selection = config.cubemap, config.light_terms, config.selection
@@ -99,7 +99,6 @@ class Relighter:
 
     def light_cube(self, light) -> np.ndarray:
         """(3, 6, N, N) texel-mean radiance of ``light`` (per light, not per frame)."""
-        from prtbench.transport.wavelet.cubemap import light_cubemap
 
         key = light.content_hash()
         if key not in self._cubes:
@@ -110,8 +109,6 @@ class Relighter:
     def select(self, light) -> tuple[np.ndarray, np.ndarray]:
         """The light's Haar coefficients (6N², 3) float64 and this frame's k terms (k,) int64:
         the per-frame work before the product."""
-        from prtbench.transport.wavelet import haar
-        from prtbench.transport.wavelet.selection import select_terms
 
         coeffs = haar.forward(self.light_cube(light)).reshape(3, -1).T  # (6N², 3)
         rule = {"area": {"support": self.weights},

@@ -34,7 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from methods.common.atlas.atlas import AtlasMesh, render_gbuffer
+from methods.common.atlas.shading import ShadingInputs
+from methods.common.atlas.texels import NEIGHBOURS, dilate
 from methods.common.materials import check_diffuse_constant_kd
+from methods.wavelet import SHADER_DIR
 from methods.wavelet.relight import (
     SELECTIONS,
     STORAGES,
@@ -45,7 +49,10 @@ from methods.wavelet.relight import (
 from prtbench.api.config import knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes, Method, Renderer, register_method
+from prtbench.render import gl
+from prtbench.render.raster import clip_planes, kd_per_vertex
 from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet.transport import cached_transport
 
 
 def dilation_rings(covered: np.ndarray, chart: np.ndarray, *, rings: int) -> list[tuple]:
@@ -69,7 +76,6 @@ def dilation_rings(covered: np.ndarray, chart: np.ndarray, *, rings: int) -> lis
         Per ring, in order: flat texel indices of the new texels (T,), and per source entry
         the position in ``targets`` (E,), the flat source texel (E,) and its weight (E,).
     """
-    from methods.common.atlas.texels import NEIGHBOURS, dilate
 
     s, r = covered.shape[0], covered.shape[1]
     yy, xx = np.mgrid[0:r, 0:r]
@@ -132,6 +138,8 @@ class WaveletTextureConfig:
 class WaveletTexture(Method):
     """Haar-wavelet transport per atlas texel, relit with k selected lighting terms."""
 
+    storage = "per-texel"
+
     Config = WaveletTextureConfig
     precompute_version = "1"
     main_knobs = ("light_terms", "texture_resolution")
@@ -167,9 +175,6 @@ class WaveletTexture(Method):
 
     @classmethod
     def precompute(cls, scene, config: WaveletTextureConfig, *, progress: bool = True) -> Artifact:
-        from methods.common.atlas.atlas import AtlasMesh, render_gbuffer
-        from methods.common.atlas.shading import ShadingInputs
-        from prtbench.transport.wavelet.transport import cached_transport
         cls.validate(scene, config)
         atlas = AtlasMesh.from_scene(scene, resolution=config.texture_resolution,
                                      padding=config.padding, texture_sets=False)
@@ -208,10 +213,6 @@ class WaveletTextureRenderer(Renderer):
 
     def __init__(self, scene, artifact: Artifact, config: WaveletTextureConfig, *, width: int,
                  height: int):
-        from methods.common.atlas.atlas import AtlasMesh
-        from methods.wavelet import SHADER_DIR
-        from prtbench.render import gl
-        from prtbench.render.raster import kd_per_vertex
 
         self.scene, self.width, self.height = scene, int(width), int(height)
         arrays = artifact.arrays
@@ -254,9 +255,6 @@ class WaveletTextureRenderer(Renderer):
         return self.relight.last_terms
 
     def _draw(self, view, light) -> None:
-        from prtbench.render import gl
-        from prtbench.render.raster import clip_planes
-
         image = self._image
         image[self.texels, :3] = self.relight(light)
         for targets, entry_target, sources, weights in self.rings:  # dilation, ring by ring

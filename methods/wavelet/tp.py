@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from methods.vertex.glossy import _validate_materials
+from methods.common.materials import validate_constant_materials
 from methods.wavelet import SHADER_DIR
 from methods.wavelet.relight import (
     SELECTIONS,
@@ -49,7 +49,12 @@ from prtbench.api.config import check_memory, knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes, Method, register_method
 from prtbench.render.raster import RasterRenderer
+from prtbench.transport.wavelet import brdf, haar
+from prtbench.transport.wavelet.brdf import BrdfTable
+from prtbench.transport.wavelet.selection import select_terms
 from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet.transport import cached_transport
+from prtbench.transport.wavelet.triple import SparseRows, mean_pyramid, triple_product
 
 #: Bytes per glossy BRDF entry formed each frame: int64 key, point and coefficient + float32
 #: value.
@@ -118,7 +123,6 @@ def _check_config(scene, config: WaveletTPConfig) -> tuple[int, int]:
 
 def _rows_from_transport(transport: SparseTransport):
     """The column-major stored visibility as per-vertex rows for the triple product."""
-    from prtbench.transport.wavelet.triple import SparseRows
 
     cols = np.repeat(np.arange(transport.n_coeffs), np.diff(transport.indptr))
     values = transport.values.astype(np.float32)
@@ -131,6 +135,8 @@ def _rows_from_transport(transport: SparseTransport):
 @register_method("wavelet-tp")
 class WaveletTP(Method):
     """Ng 2004 Haar triple products per vertex: visibility × per-frame BRDF × k-term light."""
+
+    storage = "per-vertex"
 
     Config = WaveletTPConfig
     precompute_version = "2"  # 2: the s = 0 Phong lobe is a hemisphere about r
@@ -151,14 +157,11 @@ class WaveletTP(Method):
 
     @classmethod
     def validate(cls, scene, config: WaveletTPConfig) -> None:
-        _validate_materials("wavelet-tp", scene)
+        validate_constant_materials("wavelet-tp", scene)
         _check_config(scene, config)
 
     @classmethod
     def precompute(cls, scene, config: WaveletTPConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.wavelet import brdf
-        from prtbench.transport.wavelet.transport import cached_transport
-
         cls.validate(scene, config)  # also when called directly, before any ray
         m, kept = _check_config(scene, config)
         positions, normals, _, _ = scene.merged()
@@ -208,7 +211,6 @@ class WaveletTPRenderer(RasterRenderer):
 
     def __init__(self, scene, artifact: Artifact, config: WaveletTPConfig, *, width: int,
                  height: int):
-        from prtbench.transport.wavelet.triple import SparseRows
 
         self.config = config
         transport = SparseTransport.from_arrays(artifact.arrays)
@@ -237,7 +239,6 @@ class WaveletTPRenderer(RasterRenderer):
         self.kd, self.ks = np.concatenate(self.kd), np.concatenate(self.ks)
         self.tables = []  # (BrdfTable, slots) per glossy object with brdf_table
         if config.brdf_table:
-            from prtbench.transport.wavelet.brdf import BrdfTable
 
             self.tables = [(BrdfTable.from_arrays(a, f"table{g}_"),
                             a[f"table{g}_slots"].astype(np.int64))
@@ -249,8 +250,6 @@ class WaveletTPRenderer(RasterRenderer):
 
     def glossy_rows(self, view):
         """The glossy factor G for every glossy vertex's (n, r) in ``view``, as SparseRows."""
-        from prtbench.transport.wavelet import brdf
-        from prtbench.transport.wavelet.triple import SparseRows
 
         parts = []
         for g, (sl, shininess) in enumerate(self.glossy):
@@ -276,9 +275,6 @@ class WaveletTPRenderer(RasterRenderer):
     def radiance(self, view, light) -> np.ndarray:
         """(P, 3) float32 outgoing radiance towards ``view`` of every vertex: the frame's CPU
         work."""
-        from prtbench.transport.wavelet import haar
-        from prtbench.transport.wavelet.selection import select_terms
-        from prtbench.transport.wavelet.triple import mean_pyramid, triple_product
 
         n = self.config.cubemap
         coeffs = haar.forward(self.relight.light_cube(light)).reshape(3, -1).T  # (6N², 3)

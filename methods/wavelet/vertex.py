@@ -31,6 +31,11 @@ import numpy as np
 
 from methods.common.materials import check_diffuse_constant_kd
 from methods.wavelet import SHADER_DIR
+from methods.wavelet.compressed import (
+    CompressedWaveletVertexRenderer,
+    check_compress,
+    compress_transport,
+)
 from methods.wavelet.relight import (
     SELECTIONS,
     STORAGES,
@@ -43,6 +48,7 @@ from prtbench.api.method import Artifact, FrameTimes, Method, register_method
 from prtbench.render.raster import RasterRenderer
 from prtbench.transport.compress import knobs as compress_knobs
 from prtbench.transport.wavelet.sparse import SparseTransport
+from prtbench.transport.wavelet.transport import cached_transport
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,8 @@ def _check_config(scene, config: WaveletVertexConfig) -> tuple[int, int]:
 @register_method("wavelet-vertex")
 class WaveletVertex(Method):
     """Ng 2003 Haar-wavelet transport at vertices, relit with k selected lighting terms."""
+
+    storage = "per-vertex"
 
     Config = WaveletVertexConfig
     precompute_version = "1"
@@ -121,16 +129,12 @@ class WaveletVertex(Method):
 
     @classmethod
     def validate(cls, scene, config: WaveletVertexConfig) -> None:
-        from methods.wavelet.compressed import check_compress
-
         check_diffuse_constant_kd("wavelet-vertex", scene)
         m, _ = _check_config(scene, config)
         check_compress(scene, config, dimension=m)
 
     @classmethod
     def precompute(cls, scene, config: WaveletVertexConfig, *, progress: bool = True) -> Artifact:
-        from prtbench.transport.wavelet.transport import cached_transport
-
         cls.validate(scene, config)  # also when called directly, before any ray
         m, kept = _check_config(scene, config)
         positions, normals, _, _ = scene.merged()
@@ -148,7 +152,6 @@ class WaveletVertex(Method):
         form = compress_knobs.resolve(config)
         if form is None:
             return Artifact("wavelet-vertex", transport.arrays(), meta)
-        from methods.wavelet.compressed import compress_transport
 
         # Only the compressed form (and its selection weights) is kept; the sparse transport
         # stays in its own cache entry, credited to this precompute at its recorded time.
@@ -162,7 +165,6 @@ class WaveletVertex(Method):
     def renderer(cls, scene, artifact: Artifact, config: WaveletVertexConfig, *, width: int,
                  height: int) -> "WaveletVertexRenderer":
         if compress_knobs.is_compressed(artifact.arrays):
-            from methods.wavelet.compressed import CompressedWaveletVertexRenderer
 
             return CompressedWaveletVertexRenderer(scene, artifact, config, width=width,
                                                    height=height)

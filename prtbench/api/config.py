@@ -63,7 +63,7 @@ def check_memory(what: str, need: float, *, accepted: str = "", budget: int | No
     Parameters
     ----------
     what : str
-        The values that make the estimate, e.g. ``"method 'texture-tp' texture_resolution=8192"``.
+        The values that make the estimate, e.g. a method's name and ``texture_resolution=8192``.
     need : float
         Estimated bytes.
     accepted : str

@@ -22,7 +22,7 @@ import statistics
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -38,6 +38,7 @@ from prtbench.api.cache import (
     save_arrays,
 )
 from prtbench.api.plugins import method_specs
+from prtbench.api.profiles import get_profile
 from prtbench.api.registry import Registry
 
 if TYPE_CHECKING:
@@ -176,6 +177,29 @@ class Method(ABC):
     #: Knob settings that tie an otherwise light-free method to a light:
     #: ``{knob: (dependence, light-free value, why)}``.
     light_baking_knobs: ClassVar[Mapping[str, tuple[str, Any, str]]] = {}
+    #: Where the method keeps what it precomputes, which is what its cost grows with; one of
+    #: :data:`STORAGES`: ``"per-vertex"`` (the mesh's tessellation limits it), ``"per-texel"``
+    #: (of a UV atlas), ``"per-probe"`` (of a volume), ``"per-pixel"`` (of one fixed view),
+    #: ``"network"`` (weights of a learnt model). Drivers ask
+    #: this (e.g. the stability matrix's large-mesh case) instead of listing method names.
+    #: Every method must declare it (a test checks).
+    storage: ClassVar[str] = ""
+    #: Knobs along which accuracy and cost both grow, in the order ``prtbench advise``
+    #: searches them (e.g. ``("sh_bands",)``); none: the advisor measures the defaults only.
+    main_knobs: ClassVar[tuple[str, ...]] = ()
+    #: True when the method adds nothing but glossy transfer to a cheaper diffuse one, so the
+    #: advisor drops it for a scene without glossy materials.
+    glossy_only: ClassVar[bool] = False
+    #: The case ``prtbench regress`` measures the method on (smoke profile): ``scene``,
+    #: ``variant``, ``light``, and optionally ``scene_params`` and config ``overrides``, on top
+    #: of ``plants`` diffuse under ``sky`` (prtbench.bench.regress.DEFAULT_CASE). A method
+    #: overrides it where the default case is too small to beat the trivial images.
+    regression_case: ClassVar[Mapping[str, Any]] = {}
+    #: Further regression cases ``method:variant`` -> config overrides (e.g. a compressed form).
+    regression_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
+    #: Why the method has no ``visibility`` knob (so no unshadowed trivial image exists for the
+    #: regression gate); None: it has one, or the gate says it lacks one.
+    no_visibility_reason: ClassVar[str | None] = None
 
     @classmethod
     def make_config(cls, overrides: Mapping[str, Any] | None = None, *, profile: str = "quick"):
@@ -184,7 +208,6 @@ class Method(ABC):
         An unknown ``profile`` raises :class:`prtbench.api.errors.UnknownNameError` (a silent
         fallback to the defaults would label a default-sized run with the wrong profile).
         """
-        from prtbench.api.profiles import get_profile
 
         get_profile(profile)
         values = dict(cls.profile_overrides.get(profile, {}))
@@ -206,6 +229,13 @@ class Method(ABC):
     def validate_resolution(cls, config: Any, *, width: int, height: int) -> None:
         """Raise a PrtbenchError if this method cannot render ``width`` × ``height`` pixels
         with ``config`` (a fixed-view method's transport is per pixel); any by default."""
+
+    @classmethod
+    def compress_dimension(cls, config: Any) -> int | None:
+        """Values per signal of the transfer its ``compress`` knobs compress, where the stored
+        artifact does not show it (the stability matrix derives ``pca_vectors = d`` from it);
+        None: read it from the uncompressed artifact."""
+        return None
 
     @classmethod
     @abstractmethod
@@ -251,6 +281,8 @@ class Method(ABC):
 
 #: Values of :attr:`Method.light_dependence`, from least to most tied to a light.
 LIGHT_DEPENDENCES = ("none", "fixed-light", "family")
+#: Values of :attr:`Method.storage`.
+STORAGES = ("per-vertex", "per-texel", "per-probe", "per-pixel", "network")
 
 #: name -> Method subclass, lazily imported.
 METHODS: Registry[type[Method]] = Registry("method", entry_point_group="prtbench.methods",
@@ -274,7 +306,6 @@ def artifact_key(method_cls: type[Method], scene: "Scene", config: Any) -> str:
     values = identity(config) if identity is not None else config_mod.to_dict(config)
     # A per-pixel precompute, or one trained from cameras around the views: the views are input.
     if getattr(method_cls, "fixed_view", False) or getattr(method_cls, "views_in_key", False):
-        from dataclasses import asdict
 
         views = [asdict(v) for v in scene.trajectory.views]
         return content_key(method_cls.name, method_cls.precompute_version, scene.content_hash(),

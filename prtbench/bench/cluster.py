@@ -9,11 +9,14 @@ set to the worker's share of its host's cores.
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 from collections.abc import Mapping
+from urllib.parse import urlparse
 
 from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.transport.parallel import MAX_THREADS
 
 #: Seconds to wait for an existing scheduler before ``--scheduler`` is an error.
 CONNECT_TIMEOUT_S = 5.0
@@ -79,7 +82,6 @@ class WorkerSetup(_PluginBase):
 
 def check_worker_threads(threads: int | None) -> int | None:
     """``threads`` if it is a valid per-worker thread count (or None); else a one-line error."""
-    from prtbench.transport.parallel import MAX_THREADS
 
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
                                 or not 1 <= threads <= MAX_THREADS):
@@ -95,7 +97,6 @@ def local_cluster(n_workers: int, *, threads: int | None = None):
     ``threads`` (default: this host's cores // ``n_workers``) is each worker's
     ``PRTBENCH_THREADS`` / ``LP_NUM_THREADS``.
     """
-    import logging
 
     import dask
     from distributed import LocalCluster
@@ -131,7 +132,6 @@ def register_setup(client, *, threads: int | None = None) -> int:
     ``threads`` fixes every worker's thread count; by default each gets its share of its
     host's cores (cores // workers on that host).
     """
-    from urllib.parse import urlparse
 
     threads = check_worker_threads(threads)
     host_cores = client.run(cores)  # worker address -> cores of that worker's host

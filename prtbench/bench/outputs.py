@@ -15,7 +15,9 @@ import os
 import tempfile
 from pathlib import Path
 
-from prtbench.api.errors import InvalidInputError
+from prtbench.api.cache import cache_root
+from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.store.results import ResultsStore
 
 #: Bytes the write probe writes and syncs: enough to meet ENOSPC on a full file system.
 _PROBE_BYTES = 4096
@@ -87,8 +89,6 @@ def check_file(option: str, path: str | Path) -> None:
 
 def check_results_store(option: str, path: str | Path) -> None:
     """``path`` can hold the results store: writable, and absent or a store of our schema."""
-    from prtbench.api.errors import PrtbenchError
-    from prtbench.store.results import ResultsStore
 
     check_file(option, path)
     try:
@@ -99,7 +99,6 @@ def check_results_store(option: str, path: str | Path) -> None:
 
 def check_cache() -> None:
     """The cache root (``$PRTBENCH_CACHE`` or ``~/.cache/prtbench``) is a writable folder."""
-    from prtbench.api.cache import cache_root
 
     option = "$PRTBENCH_CACHE" if os.environ.get("PRTBENCH_CACHE") else "the cache folder"
     check_folder(option, cache_root())

@@ -29,13 +29,23 @@ import tempfile
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from prtbench.api.cache import atomic_path
-from prtbench.api.errors import InvalidInputError
-from prtbench.bench.trivial import GATE_METRICS, gate_failures, visibility_knob
+from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.api.method import METHODS
+from prtbench.bench.cluster import one_line
+from prtbench.bench.executors import Lost, make_executor
+from prtbench.bench.job import Job
+from prtbench.bench.metrics import LDR_METRICS
+from prtbench.bench.runner import prepare
+from prtbench.bench.submit import run
+from prtbench.bench.trivial import GATE_METRICS, gate_failures, trivial_scores, visibility_knob
+from prtbench.io.assets import assets_root
+from prtbench.render.reference import render_reference
+from prtbench.transport.raytrace import geometry_mask
 
 DEFAULT_BASELINES = Path(__file__).resolve().parents[2] / "tests" / "baselines" / "metrics.json"
 DEFAULT_CASE = {"scene": "plants", "variant": "diffuse", "light": "sky"}
@@ -51,9 +61,9 @@ def regression_case(method_cls, variant: str | None = None) -> dict[str, Any]:
     ``variant`` names one of the method's ``regression_variants`` (config overrides regressed
     as a case of their own, baseline key ``method:variant``, e.g. a compressed form).
     """
-    case = {**DEFAULT_CASE, **getattr(method_cls, "regression_case", {})}
+    case = {**DEFAULT_CASE, **method_cls.regression_case}
     if variant is not None:
-        extra = getattr(method_cls, "regression_variants", {})[variant]
+        extra = method_cls.regression_variants[variant]
         case["overrides"] = {**case.get("overrides", {}), **extra}
     return case
 
@@ -61,30 +71,25 @@ def regression_case(method_cls, variant: str | None = None) -> dict[str, Any]:
 def case_names() -> list[str]:
     """Every regression case: each method's name, then ``method:variant`` for its
     ``regression_variants``."""
-    from prtbench.api.method import METHODS
 
     names = []
     for name in METHODS.names():
         names.append(name)
-        names += [f"{name}:{v}" for v in getattr(METHODS.get(name), "regression_variants", {})]
+        names += [f"{name}:{v}" for v in METHODS.get(name).regression_variants]
     return names
 
 
 def split_case(name: str) -> tuple[str, str | None]:
     """(method, variant or None) of a case name; unknown names are UnknownNameErrors."""
-    from prtbench.api.errors import UnknownNameError
-    from prtbench.api.method import METHODS
 
     method, sep, variant = name.partition(":")
     METHODS.check(method)
-    if sep and variant not in getattr(METHODS.get(method), "regression_variants", {}):
+    if sep and variant not in METHODS.get(method).regression_variants:
         raise UnknownNameError("regression case", name, case_names())
     return method, (variant if sep else None)
 
 
 def _case_of(name: str) -> dict[str, Any]:
-    from prtbench.api.method import METHODS
-
     method, variant = split_case(name)
     return regression_case(METHODS.get(method), variant)
 
@@ -120,37 +125,26 @@ def _mean(rows: Sequence[Mapping[str, float]]) -> dict[str, float]:
     return {k: float(sum(r[k] for r in rows) / len(rows)) for k in rows[0]}
 
 
-def case_request(method: str, *, overrides: Mapping[str, Any] | None = None, **fields):
-    """The :class:`~prtbench.bench.runner.RunRequest` of ``method``'s regression case (smoke profile).
+def case_job(method: str, *, overrides: Mapping[str, Any] | None = None) -> Job:
+    """The :class:`~prtbench.bench.job.Job` of ``method``'s regression case (smoke profile).
 
     The case's own ``overrides`` (config knobs a method needs for a meaningful smoke case,
-    e.g. a longer training) come first, then ``overrides`` (``--set``); ``fields`` replace
-    request fields (e.g. ``store_results=True`` in a smoke test). Nothing is written by default.
+    e.g. a longer training) come first, then ``overrides`` (``--set``).
     """
-    from prtbench.bench.runner import RunRequest
-
     case = _case_of(method)  # a ``method:variant`` case runs the method with its overrides
     method = split_case(method)[0]
-    values = dict(method=method, scene=case["scene"], variant=case["variant"],
-                  light=case["light"], profile="smoke", out_dir=None,
-                  overrides={**case.get("overrides", {}), **(overrides or {})},
-                  scene_params=dict(case.get("scene_params", {})),
-                  store_results=False, write_images=False)
-    values.update(fields)
-    return RunRequest(**values)
+    return Job(method=method, scene=case["scene"], variant=case["variant"], light=case["light"],
+               profile="smoke", overrides={**case.get("overrides", {}), **(overrides or {})},
+               scene_params=dict(case.get("scene_params", {})))
 
 
-def trivial_metrics(request) -> dict[str, dict[str, float]]:
-    """Mean (over the request's views) metrics of the flat and half-bright images.
+def trivial_metrics(job: Job) -> dict[str, dict[str, float]]:
+    """Mean (over the job's views) metrics of the flat and half-bright images.
 
-    The reference and mask are those a run of ``request`` measures against (same profile,
+    The reference and mask are those a run of ``job`` measures against (same profile,
     resolution, spp and bounces; the reference comes from the same cache).
     """
-    from prtbench.bench.runner import geometry_mask, prepare
-    from prtbench.bench.trivial import trivial_scores
-    from prtbench.render.reference import render_reference
-
-    prepared = prepare(request)
+    prepared = prepare(job, store=False)
     scene = prepared.scene
     per_view = []
     for view in scene.trajectory.views:
@@ -162,47 +156,48 @@ def trivial_metrics(request) -> dict[str, dict[str, float]]:
     return {name: _mean([v[name] for v in per_view]) for name in per_view[0]}
 
 
-def trivial_results(request) -> tuple[dict[str, dict[str, float]], dict[str, str]]:
-    """(metrics of every trivial image of ``request``, skipped images with their reason).
+def trivial_results(job: Job) -> tuple[dict[str, dict[str, float]], dict[str, str]]:
+    """(metrics of every trivial image of ``job``, skipped images with their reason).
 
-    Adds the ``unshadowed`` render (the same request with ``visibility=False``) where the
-    method has a visibility knob.
+    Adds the ``unshadowed`` render (the same job with ``visibility=False``) where the method
+    has a visibility knob.
     """
-    from dataclasses import replace
-
-    from prtbench.api.method import METHODS
-    from prtbench.bench.runner import run
-
-    trivial, skipped = trivial_metrics(request), {}
-    reason = visibility_knob(METHODS.get(request.method))
+    trivial, skipped = trivial_metrics(job), {}
+    reason = visibility_knob(METHODS.get(job.method))
     if reason is None:
-        unshadowed = replace(request, overrides={**request.overrides, "visibility": False},
-                             store_results=False, write_images=False, out_dir=None,
-                             json_path=None)
-        trivial["unshadowed"] = run(unshadowed, progress=False, echo=False).mean_metrics()
+        unshadowed = replace(job, overrides={**job.overrides, "visibility": False})
+        trivial["unshadowed"] = run(unshadowed, store=False, progress=False,
+                                    echo=False).summary.mean_metrics()
     else:
         skipped["unshadowed"] = reason
     return trivial, skipped
 
 
-def gate(request, metrics: Mapping[str, float]) -> list[str]:
-    """Lines naming each trivial image of ``request`` that ``metrics`` do not beat.
+def gate(job: Job, metrics: Mapping[str, float]) -> list[str]:
+    """Lines naming each trivial image of ``job`` that ``metrics`` do not beat.
 
-    For smoke tests: ``assert not gate(request, summary.mean_metrics())``.
+    For smoke tests: ``assert not gate(job, summary.mean_metrics())``.
     """
-    trivial, _ = trivial_results(request)
+    trivial, _ = trivial_results(job)
     return gate_failures(metrics, trivial)
 
 
 def measure(method: str) -> Measurement:
     """Run ``method`` (or a ``method:variant`` case) on its regression case (smoke profile),
     with its trivial images."""
-    from prtbench.bench.runner import run
-
-    request = case_request(method)
-    summary = run(request, progress=False, echo=False)
-    trivial, skipped = trivial_results(request)
+    job = case_job(method)
+    summary = run(job, store=False, progress=False, echo=False).summary
+    trivial, skipped = trivial_results(job)
     return Measurement(_case_of(method), summary.mean_metrics(), trivial, skipped)
+
+
+def _measure_safely(name: str) -> tuple[Measurement | None, str, float]:
+    """(measurement or None, the one-line error of a case that could not run, seconds)."""
+    start = time.perf_counter()
+    try:
+        return measure(name), "", time.perf_counter() - start
+    except Exception as exc:  # noqa: BLE001 - a broken method fails its case, not the run
+        return None, one_line(exc), time.perf_counter() - start
 
 
 @contextmanager
@@ -212,7 +207,6 @@ def _cache_dir(cache: Path | None) -> Iterator[Path]:
     Fetched assets (pinned, checksummed downloads, not artifacts of our code) stay where they
     were: ``$PRTBENCH_ASSETS`` is pointed at the previous assets folder meanwhile.
     """
-    from prtbench.io.assets import assets_root
 
     saved = {k: os.environ.get(k) for k in ("PRTBENCH_CACHE", "PRTBENCH_ASSETS")}
     assets = assets_root()
@@ -264,8 +258,6 @@ def _number(value: Any) -> float | None:
 
 
 def _known_metric(key: str) -> bool:
-    from prtbench.bench.metrics import LDR_METRICS
-
     return (key[:-len("_masked")] if key.endswith("_masked") else key) in LDR_METRICS
 
 
@@ -336,7 +328,8 @@ def _compare(name: str, specs: Mapping[str, tuple[float, float]], result: Measur
 
 
 def regress(*, update: bool = False, methods: Sequence[str] | None = None,
-            baseline_path: Path | None = None, cache: Path | None = None) -> bool:
+            baseline_path: Path | None = None, cache: Path | None = None,
+            workers: int = 0) -> bool:
     """Gate and compare (or with ``update``, rewrite) baselines; prints a report.
 
     Parameters
@@ -350,6 +343,10 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
         Default :data:`DEFAULT_BASELINES`.
     cache : Path, optional
         Artifact cache to use; default a fresh temporary one, removed afterwards.
+    workers : int
+        Cases measured at once on Dask workers (0: one after another in this process). The
+        gate and the baselines compare image metrics only, never times, so parallel cases
+        give the same verdicts.
 
     Returns
     -------
@@ -379,12 +376,18 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
                 print(f"{name}: FAIL {line}")
             ok &= not problems
             checked[name] = specs
-    with _cache_dir(cache):
-        for name in names:
-            start = time.perf_counter()
-            result = measure(name)
+    with _cache_dir(cache), make_executor(workers=workers) as executor:
+        for index, outcome in executor.map(_measure_safely, names):
+            name = names[index]
+            result, error, seconds = (None, outcome.error, outcome.seconds) if isinstance(
+                outcome, Lost) else outcome
+            if result is None:
+                print(f"{name}: FAIL the case could not run: {error}")
+                ok = False
+                refused.append(name)
+                continue
             print(f"{name}: {_fmt(result.metrics)} on {json.dumps(result.case)} "
-                  f"({time.perf_counter() - start:.1f} s with its trivial images)")
+                  f"({seconds:.1f} s with its trivial images)")
             gate_ok = _report_gate(name, result)
             ok &= gate_ok
             if update:

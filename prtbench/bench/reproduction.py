@@ -1,7 +1,7 @@
 """Reproductions of paper tables and figures (DESIGN.md §11).
 
 A reproduction declares the paper and table, its sweep (methods × configs × scenes × lights ×
-views) as :class:`Cell` objects, the paper's own numbers (shown only in "paper" columns), the
+views) as :class:`Job` objects, the paper's own numbers (shown only in "paper" columns), the
 scene substitutions it had to make, and a formatter. :func:`run_table` runs the sweep through
 the ordinary runner, which appends rows to the results store, records the sweep as a *report
 run* (:mod:`prtbench.store.measurements`), then builds the report **from the store** (the report
@@ -18,30 +18,18 @@ import math
 import re
 import sys
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from prtbench.api.cache import atomic_path
+from prtbench.api.profiles import get_profile
 from prtbench.api.registry import Registry
-
-
-@dataclass(frozen=True)
-class Cell:
-    """One measured configuration of a sweep.
-
-    ``label`` holds the row/column keys the formatter groups by (e.g. ``{"ground": "2"}``).
-    """
-
-    method: str
-    scene: str
-    label: Mapping[str, Any]
-    variant: str = "diffuse"
-    light: str | None = None
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    scene_params: Mapping[str, Any] = field(default_factory=dict)
-    reference: str = "path"
-    views: int | None = None
+from prtbench.bench.job import Job
+from prtbench.bench.submit import JobResult, submit
+from prtbench.store import measurements
+from prtbench.store.results import load
 
 
 class Reproduction:
@@ -54,7 +42,7 @@ class Reproduction:
     substitutions: Sequence[str] = ()
     notes: Sequence[str] = ()
 
-    def cells(self, profile: str) -> list[Cell]:
+    def cells(self, profile: str) -> list[Job]:
         """The runner cells this table sweeps. Default none: a table that measures everything
         itself (its own harness in :meth:`measure`) needs no cells."""
         return []
@@ -133,8 +121,6 @@ TABLES: Registry[Reproduction] = Registry("table", entry_point_group="prtbench.t
 
 
 def _check_profile(profile: str) -> None:
-    from prtbench.api.profiles import get_profile
-
     get_profile(profile)  # an unknown profile is a one-line error before any work
 
 
@@ -154,7 +140,6 @@ class Stored:
 
     def frame(self):
         """The result rows of the report's runner runs (and own runs), with ``label_<key>`` columns."""
-        from prtbench.store.results import load
 
         members = self.report.members
         frame = load(self.results_path)
@@ -166,7 +151,6 @@ class Stored:
 
     def table(self, name: str):
         """Measurement table ``name`` of this report run (:func:`prtbench.store.measurements.load`)."""
-        from prtbench.store import measurements
 
         return measurements.load(name, run_ids=[self.run_id], results_path=self.results_path)
 
@@ -176,9 +160,6 @@ class Stored:
         Panels stored as 8-bit display values (:func:`display_panels`) come back as float32 in
         [0, 1]; other arrays as stored.
         """
-        import numpy as np
-
-        from prtbench.store import measurements
 
         return {k: (v.astype(np.float32) / 255.0 if v.dtype == np.uint8 else v) for k, v in
                 measurements.load_images(self.run_id, results_path=self.results_path).items()}
@@ -197,7 +178,6 @@ def display_panels(images: Mapping[str, Any]) -> dict:
         A paper-size panel is 6 MiB instead of 25 MiB of float32; :meth:`Stored.images`
         turns them back into floats.
     """
-    import numpy as np
 
     return {k: np.round(np.clip(np.asarray(v, np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
             for k, v in images.items()}
@@ -227,7 +207,6 @@ def run_table(reproduction: Reproduction, *, profile: str = "quick",
     ``profile`` is formatted again (a one-line error, writing nothing, if there is none).
     Returns the written paths.
     """
-    from prtbench.store import measurements
 
     _check_profile(profile)
     if from_store:
@@ -257,22 +236,19 @@ def run_table(reproduction: Reproduction, *, profile: str = "quick",
 
 def _measure_table(reproduction: Reproduction, *, profile: str, results_path: Path | None,
                    progress: bool):
-    from prtbench.bench.runner import RunRequest, execute, prepare
-    from prtbench.store import measurements
+    jobs = reproduction.cells(profile)
 
-    cells = reproduction.cells(profile)
-    # Validate every cell before running any, so a bad cell writes nothing.
-    prepared = [prepare(RunRequest(
-        method=c.method, scene=c.scene, variant=c.variant, light=c.light, views=c.views,
-        profile=profile, reference=c.reference, overrides=dict(c.overrides),
-        scene_params=dict(c.scene_params), out_dir=None, results_path=results_path,
-        write_images=False)) for c in cells]
+    def announce(result: JobResult) -> None:
+        print(f"[table {reproduction.name}] {result.job.describe()}: {result.status}"
+              f"{f' ({result.error})' if result.error else ''}", file=sys.stderr, flush=True)
+
+    # Every cell is validated before any runs; a failing cell is an error of the table.
+    submission = submit(jobs, profile=profile, results_path=results_path, progress=progress,
+                        run_progress=progress, echo=progress, desc=f"table {reproduction.name}",
+                        raise_errors=True, on_result=announce)
     members: dict[str, dict] = {}
-    for i, (cell, job) in enumerate(zip(cells, prepared)):
-        print(f"[table {reproduction.name}] cell {i + 1}/{len(cells)}: {dict(cell.label)}",
-              file=sys.stderr, flush=True)
-        summary = execute(job, progress=progress)
-        members[summary.run_id] = dict(cell.label)
+    for job, result in zip(jobs, submission.per_job):
+        members[result.summary.run_id] = dict(job.label)
     for own in reproduction.measure(profile, results_path=results_path):
         members.setdefault(own, {})
     run_id = measurements.new_run_id()
@@ -326,7 +302,6 @@ class Figure:
     def make(self, *, profile: str, reports_dir: Path, results_path: Path | None = None,
              progress: bool = True, from_store: bool = False) -> list[Path]:
         """Measure (unless ``from_store``) and write the figure; returns the written paths."""
-        from prtbench.store import measurements
 
         _check_profile(profile)
         if from_store:

@@ -15,11 +15,13 @@ then exits 1.
 from __future__ import annotations
 
 import math
+import os
+import platform
 import sys
 import time
 import uuid
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,39 +29,32 @@ import numpy as np
 
 from prtbench.api import config as config_mod
 from prtbench.api import strict_json
+from prtbench.api.cache import atomic_path
 from prtbench.api.errors import InvalidInputError, UnknownNameError
 from prtbench.api.method import METHODS, Method, load_or_precompute
 from prtbench.api.profiles import Profile, get_profile
+from prtbench.bench import metrics
 from prtbench.bench.degeneracy import degenerate_reason
-from prtbench.scene.model import SCENES, VARIANTS, Scene, get_scene
-
-
-@dataclass
-class RunRequest:
-    """What ``prtbench run`` was asked to do (CLI arguments, already parsed)."""
-
-    method: str
-    scene: str
-    variant: str = "diffuse"
-    light: str | None = None
-    views: int | None = None
-    resolution: tuple[int, int] | None = None
-    profile: str = "quick"
-    reference: str = "path"
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    scene_params: Mapping[str, Any] = field(default_factory=dict)
-    out_dir: Path | None = Path("out")
-    json_path: Path | None = None
-    results_path: Path | None = None
-    store_results: bool = True
-    write_images: bool = True
+from prtbench.bench.job import NO_OUTPUTS, Job, Outputs
+from prtbench.bench.outputs import check_cache, check_file, check_folder, check_results_store
+from prtbench.io import imageio
+from prtbench.render import renders
+from prtbench.render.mitsuba_variant import check_variant
+from prtbench.render.reference import render_reference
+from prtbench.scene.model import VARIANTS, Scene
+from prtbench.scene.registry import SCENES, get_scene
+from prtbench.store.results import ResultRow, default_path, git_sha
+from prtbench.transport.lights import get_light
+from prtbench.transport.parallel import thread_count
+from prtbench.transport.raytrace import geometry_mask
 
 
 @dataclass
 class PreparedRun:
-    """A validated request with its resolved objects."""
+    """A validated job with its resolved objects."""
 
-    request: RunRequest
+    job: Job
+    outputs: Outputs
     method_cls: type[Method]
     config: Any
     profile: Profile
@@ -163,74 +158,46 @@ def resolve_views(scene: Scene, profile: Profile, views: int | None) -> Scene:
     return scene.with_views(n_views)
 
 
-def check_outputs(request: RunRequest) -> None:
-    """Every location ``request`` will write to is usable (see :mod:`prtbench.bench.outputs`)."""
-    from prtbench.bench import outputs
-    from prtbench.store.results import default_path
-
-    if request.write_images and request.out_dir is not None:
-        outputs.check_folder("--out", request.out_dir)
-    if request.json_path is not None:
-        outputs.check_file("--json", request.json_path)
-    if request.store_results:
-        outputs.check_results_store("--results", request.results_path or default_path())
-    outputs.check_cache()
+def check_outputs(outputs: Outputs, *, results_path: Path | None, store: bool) -> None:
+    """Every location a job will write to is usable (see :mod:`prtbench.bench.outputs`)."""
+    if outputs.out_dir is not None:
+        check_folder("--out", outputs.out_dir)
+    if outputs.json_path is not None:
+        check_file("--json", outputs.json_path)
+    if store:
+        check_results_store("--results", results_path or default_path())
+    check_cache()
 
 
-def prepare(request: RunRequest) -> PreparedRun:
-    """Validate and resolve a request; writes nothing."""
-    from prtbench.transport.lights import get_light
+def prepare(job: Job, *, outputs: Outputs = NO_OUTPUTS, results_path: Path | None = None,
+            store: bool = True, profile: str = "quick") -> PreparedRun:
+    """Validate and resolve ``job`` (in ``profile`` unless it names its own); writes nothing.
 
-    profile = get_profile(request.profile)
-    SCENES.check(request.scene)
-    method_cls = METHODS.get(request.method)
-    config = method_cls.make_config(request.overrides, profile=request.profile)
-    if request.variant not in VARIANTS:
-        raise UnknownNameError("variant", request.variant, VARIANTS)
-    reference_method = _reference_method(request.reference, request.profile)
-    from prtbench.transport.parallel import thread_count
-
+    ``results_path`` and ``store`` say where the rows will go (checked here; the rows are
+    written by :func:`prtbench.bench.submit.submit`, never by the run itself).
+    """
+    job = job.in_profile(profile)
+    profile_obj = get_profile(job.profile)
+    SCENES.check(job.scene)
+    method_cls = METHODS.get(job.method)
+    config = method_cls.make_config(job.overrides, profile=job.profile)
+    if job.variant not in VARIANTS:
+        raise UnknownNameError("variant", job.variant, VARIANTS)
+    reference_method = _reference_method(job.reference, job.profile)
     thread_count()  # a bad $PRTBENCH_THREADS fails here, not at the first ray query
     if reference_method is None:  # only the path-traced reference needs Mitsuba
-        from prtbench.render.reference import check_variant
-
         check_variant()  # a bad $PRTBENCH_MITSUBA_VARIANT fails before the precompute
-    scene = get_scene(request.scene, variant=request.variant, **dict(request.scene_params))
-    light = get_light(request.light or scene.default_light)
-    scene = resolve_views(scene, profile, request.views)
-    width, height = request.resolution or (profile.width, profile.height)
+    scene = get_scene(job.scene, variant=job.variant, **dict(job.scene_params))
+    light = get_light(job.light or scene.default_light)
+    scene = resolve_views(scene, profile_obj, job.views)
+    width, height = job.resolution or (profile_obj.width, profile_obj.height)
     method_cls.validate(scene, config)
-    check_resolution = getattr(method_cls, "validate_resolution", None)
-    if check_resolution is not None:  # a fixed-view method precomputes per pixel
-        check_resolution(config, width=width, height=height)
+    method_cls.validate_resolution(config, width=width, height=height)
     if reference_method is not None:
         reference_method[0].validate(scene, reference_method[1])
-    check_outputs(request)
-    return PreparedRun(request, method_cls, config, profile, scene, light, width, height,
+    check_outputs(outputs, results_path=results_path, store=store)
+    return PreparedRun(job, outputs, method_cls, config, profile_obj, scene, light, width, height,
                        reference_method)
-
-
-def geometry_mask(scene: Scene, view, width: int, height: int) -> np.ndarray:
-    """(H, W) bool: pixels whose centre ray hits geometry (the masked metrics' support)."""
-    from prtbench.transport.raytrace import Tracer
-
-    tracer = _tracer_for(scene)
-    origins, dirs = view.primary_rays(width, height)
-    hits = tracer.first_hit(origins.reshape(-1, 3), dirs.reshape(-1, 3))
-    return (hits.face >= 0).reshape(height, width)
-
-
-_TRACERS: dict[str, Any] = {}
-
-
-def _tracer_for(scene: Scene):
-    from prtbench.transport.raytrace import Tracer
-
-    key = scene.content_hash()
-    if key not in _TRACERS:
-        _TRACERS.clear()  # one scene at a time keeps memory bounded on big scenes
-        _TRACERS[key] = Tracer.from_scene(scene)
-    return _TRACERS[key]
 
 
 def _log(echo: bool, message: str) -> None:
@@ -239,18 +206,14 @@ def _log(echo: bool, message: str) -> None:
 
 
 def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) -> RunSummary:
-    """Run a prepared job; returns its summary (and writes files / rows as requested)."""
-    from prtbench.bench import metrics
-    from prtbench.io import imageio
-    from prtbench.render import renders
-    from prtbench.render.reference import render_reference
-
-    req, scene, light = prepared.request, prepared.scene, prepared.light
+    """Run a prepared job; returns its summary and writes its files (never the store: the
+    rows, :func:`summary_rows`, go to the client that submitted the job)."""
+    job, scene, light = prepared.job, prepared.scene, prepared.light
     method_cls, config = prepared.method_cls, prepared.config
     width, height = prepared.width, prepared.height
     _log(echo, f"[prtbench] profile={prepared.profile.name} method={method_cls.name} "
                f"scene={scene.name}/{scene.variant} ({scene.n_triangles} tris) light={light.name} "
-               f"views={len(scene.trajectory)} res={width}x{height} reference={req.reference}")
+               f"views={len(scene.trajectory)} res={width}x{height} reference={job.reference}")
     artifact = load_or_precompute(method_cls, scene, config, progress=progress)
     _log(echo, f"[prtbench] precompute: {artifact.precompute_s:.1f} s"
                f"{' (cached)' if artifact.cache_hit else ''}"
@@ -265,8 +228,9 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         ref_renderer = ref_cls.renderer(scene, ref_artifact, ref_config, width=width, height=height)
     run_id = uuid.uuid4().hex[:12]
     out_dir = None
-    if req.write_images and req.out_dir is not None:
-        out_dir = Path(req.out_dir) / method_cls.name / f"{scene.name}-{scene.variant}" / light.name
+    if prepared.outputs.out_dir is not None:
+        out_dir = (Path(prepared.outputs.out_dir) / method_cls.name
+                   / f"{scene.name}-{scene.variant}" / light.name)
     view_results: list[ViewResult] = []
     ref_spp, ref_noise = None, None
     try:
@@ -319,7 +283,7 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
     summary = RunSummary(
         method=method_cls.name, config=config_mod.to_dict(config), scene=scene.name,
         variant=scene.variant, light=light.name, profile=prepared.profile.name, width=width,
-        height=height, reference=req.reference, reference_spp=ref_spp,
+        height=height, reference=job.reference, reference_spp=ref_spp,
         reference_noise_display=ref_noise, renderer=renderer.renderer_string,
         memory_bytes=memory, precompute_s=artifact.precompute_s,
         precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results,
@@ -330,13 +294,9 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         if artifact.rebuilt else
         "precompute reused cached parts whose compute time was never recorded (an older "
         "cache); precompute_s understates the cost from scratch")
-    if req.store_results:
-        from prtbench.store.results import ResultsStore
-
-        ResultsStore(req.results_path).append(summary_rows(summary, scene))
-    if out_dir is not None or req.json_path is not None:
-        json_path = Path(req.json_path) if req.json_path else out_dir / "summary.json"
-        from prtbench.api.cache import atomic_path
+    if out_dir is not None or prepared.outputs.json_path is not None:
+        json_path = (Path(prepared.outputs.json_path) if prepared.outputs.json_path
+                     else out_dir / "summary.json")
 
         with atomic_path(json_path) as tmp:
             tmp.write_text(strict_json.dumps(summary.to_json(), indent=2))
@@ -345,8 +305,6 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
 
 def device_description() -> str:
     """The measuring machine: CPU model and core count (the GPU is in the renderer string)."""
-    import os
-    import platform
 
     cpu = platform.processor() or platform.machine()
     try:
@@ -360,7 +318,6 @@ def device_description() -> str:
 def load_average() -> float | None:
     """The 1-minute load average (None where the OS has none), stored with every row so a
     report can say when its timings were taken on a busy machine."""
-    import os
 
     try:
         return float(os.getloadavg()[0])
@@ -389,7 +346,6 @@ def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
     -------
     list of prtbench.store.results.ResultRow
     """
-    from prtbench.store.results import ResultRow, git_sha
 
     rebuilt_note = summary.rebuilt_note
 
@@ -418,11 +374,6 @@ def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
             scene_vertices=scene.n_vertices, workers=workers, cell_key=cell_key,
             load_average=load_average()))
     return rows
-
-
-def run(request: RunRequest, *, progress: bool = True, echo: bool = True) -> RunSummary:
-    """Validate, then execute, a request."""
-    return execute(prepare(request), progress=progress, echo=echo)
 
 
 def format_summary(summary: RunSummary, *, metric_names: Sequence[str] = (

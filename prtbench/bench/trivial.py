@@ -24,6 +24,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.bench.metrics import compute_metrics
+from prtbench.io.imageio import display
 
 #: Masked PSNR (dB) a method must score above every trivial image: the regression tolerance on
 #: masked PSNR (:data:`prtbench.bench.regress.TOLERANCES`): every run is gated, so a run that passes
@@ -46,7 +48,7 @@ def trivial_images(reference_hdr: np.ndarray, mask: np.ndarray, *,
     reference_hdr : ndarray, shape (H, W, 3)
         Linear reference radiance (background 0).
     mask : ndarray, shape (H, W), bool
-        Geometry pixels (:func:`prtbench.bench.runner.geometry_mask`); must not be empty.
+        Geometry pixels (:func:`prtbench.transport.raytrace.geometry_mask`); must not be empty.
     exposure : float
         The scene's display exposure.
 
@@ -55,7 +57,6 @@ def trivial_images(reference_hdr: np.ndarray, mask: np.ndarray, *,
     dict of str to ndarray, shape (H, W, 3), float32 in [0, 1]
         ``{"flat": …, "half": …}``.
     """
-    from prtbench.io.imageio import display
 
     ref = np.asarray(reference_hdr, dtype=np.float64)
     mask = np.asarray(mask, dtype=bool)
@@ -80,8 +81,6 @@ def trivial_scores(reference_hdr: np.ndarray, mask: np.ndarray, *,
     dict of str to dict of str to float
         ``{"flat": {"psnr_masked": …, "flip_masked": …, …}, "half": {…}}``.
     """
-    from prtbench.bench.metrics import compute_metrics
-    from prtbench.io.imageio import display
 
     ref_d = display(reference_hdr, exposure=exposure)
     return {name: compute_metrics(image, ref_d, mask=mask)
@@ -112,5 +111,5 @@ def visibility_knob(method_cls) -> str | None:
     """
     if "visibility" in getattr(method_cls.Config, "__dataclass_fields__", {}):
         return None
-    return getattr(method_cls, "no_visibility_reason", None) or (
+    return method_cls.no_visibility_reason or (
         f"method '{method_cls.name}' has no visibility knob")

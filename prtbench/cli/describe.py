@@ -7,12 +7,14 @@ metadata, so what is printed is what ``--set KEY=VALUE`` accepts.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import textwrap
 import typing
 from typing import Any
 
 from prtbench.api import config as config_mod
+from prtbench.api.method import METHODS
 
 
 def type_name(tp: Any) -> str:
@@ -81,3 +83,12 @@ def format_method(name: str, method: Any, *, width: int = 100) -> str:
             lines += textwrap.wrap(f"{profile}: {pairs}", width=width, initial_indent="  ",
                                    subsequent_indent="      ", break_on_hyphens=False)
     return "\n".join(lines)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("method")
+
+
+def run(args: argparse.Namespace) -> int:
+    print(format_method(args.method, METHODS.get(args.method)))
+    return 0

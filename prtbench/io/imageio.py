@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from prtbench.api.cache import atomic_path
 from prtbench.api.errors import InvalidInputError
@@ -263,7 +264,6 @@ def write_png(path: str | Path, image: np.ndarray) -> None:
 
     The pixels are :func:`png_pixels` of ``image``; Pillow encodes them.
     """
-    from PIL import Image
 
     pixels = Image.fromarray(png_pixels(image))
     with atomic_path(Path(path)) as tmp:
@@ -278,7 +278,6 @@ def read_png(path: str | Path) -> np.ndarray:
     InvalidInputError
         If the file is missing or not a readable image.
     """
-    from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as png:

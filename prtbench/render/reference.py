@@ -35,7 +35,6 @@ import hashlib
 import json
 import logging
 import math
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -44,24 +43,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from prtbench.api.cache import cache_root, content_key, entry_lock
-from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.api.errors import InvalidInputError
+from prtbench.io.imageio import display, read_exr, read_exr_metadata, write_exr
+from prtbench.render.mitsuba_bsdf import material_bsdf
+from prtbench.render.mitsuba_variant import one_line, select_variant
 from prtbench.scene.model import Scene, View
+from prtbench.transport.lights import get_light
 
 log = logging.getLogger(__name__)
 
 #: Bump when a change here changes reference pixels (invalidates cached references).
 REFERENCE_VERSION = 1
 
-VARIANT_ENV = "PRTBENCH_MITSUBA_VARIANT"
-VARIANT_ORDER = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
-DEBIAN_LIBLLVM = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"
-
 #: Samples traced per ``mi.render`` call (pixels × spp): bounds JIT-variant memory.
 LANES_PER_PASS = 1 << 21
 
-_chosen: dict[str | None, str] = {}
 
 
 @dataclass
@@ -105,110 +104,6 @@ def reference_kind() -> str:
 
 
 # --------------------------------------------------------------------------------------------
-# Variant selection
-# --------------------------------------------------------------------------------------------
-
-def _try_variant(name: str) -> None:
-    import drjit as dr
-    import mitsuba as mi
-
-    mi.set_variant(name)
-    # A backend can import yet fail on first use (no GPU, unusable libLLVM): run a kernel.
-    probe = mi.Float(1.0) + mi.Float(2.0)
-    dr.eval(probe)
-    if abs(float(np.asarray(probe).ravel()[0]) - 3.0) > 1e-6:
-        raise RuntimeError(f"variant {name} computed {probe}")
-
-
-def select_variant() -> str:
-    """Activate and return the Mitsuba variant for references (see module docstring).
-
-    Raises
-    ------
-    InvalidInputError
-        If ``$PRTBENCH_MITSUBA_VARIANT`` names a variant that is unknown or unusable here.
-    """
-    override = os.environ.get(VARIANT_ENV) or None
-    if override in _chosen:
-        import mitsuba as mi
-
-        if mi.variant() != _chosen[override]:
-            mi.set_variant(_chosen[override])
-        return _chosen[override]
-    if "DRJIT_LIBLLVM_PATH" not in os.environ and os.path.exists(DEBIAN_LIBLLVM):
-        os.environ["DRJIT_LIBLLVM_PATH"] = DEBIAN_LIBLLVM  # read when drjit first starts LLVM
-    import mitsuba as mi
-
-    if override is not None:
-        known = [v for v in mi.variants() if v.endswith("_rgb")]
-        if override not in known:
-            raise InvalidInputError(
-                f"{VARIANT_ENV}={override!r} is not a Mitsuba RGB variant; accepted (working "
-                f"here): {', '.join(usable_variants()) or '(none)'}")
-        try:
-            _try_variant(override)
-        except Exception as exc:  # noqa: BLE001 - mitsuba raises ImportError/RuntimeError
-            raise InvalidInputError(
-                f"{VARIANT_ENV}={override!r} is not usable here ({_one_line(exc)}); "
-                f"accepted (working here): {', '.join(usable_variants()) or '(none)'}") from None
-        chosen = override
-    else:
-        chosen = ""
-        for name in VARIANT_ORDER:
-            try:
-                _try_variant(name)
-            except Exception as exc:  # noqa: BLE001
-                log.info("mitsuba variant %s unavailable: %s", name, _one_line(exc))
-                continue
-            chosen = name
-            break
-        if not chosen:
-            raise PrtbenchError(f"no Mitsuba variant works here; tried {', '.join(VARIANT_ORDER)}")
-    log.info("mitsuba variant for references: %s", chosen)
-    _chosen[override] = chosen
-    return chosen
-
-
-def usable_variants() -> list[str]:
-    """The RGB variants of :data:`VARIANT_ORDER` (then any other compiled one) that run here."""
-    import mitsuba as mi
-
-    compiled = [v for v in mi.variants() if v.endswith("_rgb")]
-    order = [v for v in VARIANT_ORDER if v in compiled] + \
-        [v for v in compiled if v not in VARIANT_ORDER]
-    working = []
-    for name in order:
-        try:
-            _try_variant(name)
-        except Exception:  # noqa: BLE001 - a backend that cannot start is simply not listed
-            continue
-        working.append(name)
-    return working
-
-
-def check_variant() -> str:
-    """Validate the reference variant before any work; returns the variant name.
-
-    The runner's ``prepare()`` calls this so that a bad ``$PRTBENCH_MITSUBA_VARIANT`` (unknown,
-    or not usable on this machine) is a one-line error before the precompute, not after it.
-    It activates the variant (:func:`select_variant`), which the reference needs anyway.
-
-    Raises
-    ------
-    InvalidInputError
-        ``$PRTBENCH_MITSUBA_VARIANT`` is unknown or unusable (names it and the working ones).
-    PrtbenchError
-        No variant works here.
-    """
-    return select_variant()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
-
-
-# --------------------------------------------------------------------------------------------
 # Scene conversion
 # --------------------------------------------------------------------------------------------
 
@@ -220,8 +115,6 @@ def mitsuba_scene_dict(scene: Scene, light: Any, view: View, *, width: int, heig
     Needs an active variant (:func:`select_variant`). ``spp`` is the sampler's per-pass count.
     """
     import mitsuba as mi
-
-    from prtbench.render.mitsuba_bsdf import material_bsdf
 
     diag = max(scene.diagonal(), 1e-6)
     lo, hi = scene.bounds()
@@ -350,8 +243,6 @@ def reference_checksum(image: np.ndarray, metadata: dict[str, str]) -> str:
 
 
 def _load_cached(path: Path) -> Reference | None:
-    from prtbench.io.imageio import read_exr, read_exr_metadata
-
     if not path.is_file():
         return None
     try:
@@ -373,9 +264,9 @@ def _load_cached(path: Path) -> Reference | None:
         # Said on stderr whatever the logging setup: the user sees why it renders again.
         # Said once on stderr whatever the logging setup (a log.warning as well printed the
         # same news twice under the CLI's stderr handler): the user sees why it renders again.
-        print(f"[prtbench] cached reference {path.name} is not usable ({_one_line(exc)}); "
+        print(f"[prtbench] cached reference {path.name} is not usable ({one_line(exc)}); "
               "rendering it again", file=sys.stderr, flush=True)
-        log.debug("discarded cached reference %s (%s)", path, _one_line(exc))
+        log.debug("discarded cached reference %s (%s)", path, one_line(exc))
         path.unlink(missing_ok=True)
         return None
     return ref
@@ -410,7 +301,6 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
     Reference
     """
     if isinstance(light, str):
-        from prtbench.transport.lights import get_light
 
         light = get_light(light)
     width, height, spp, bounces = int(width), int(height), int(spp), int(bounces)
@@ -422,9 +312,6 @@ def render_reference(scene: Scene, light: Any, view: View, *, width: int, height
     if bounces < 0:
         raise InvalidInputError(f"bounces={bounces}; accepted: 0 or more")
     variant = select_variant()
-    import mitsuba as mi
-
-    from prtbench.io.imageio import display, write_exr
 
     path = cache_root() / "references" / (reference_key(
         scene, light, view, width=width, height=height, bounces=bounces, spp=spp,
@@ -450,8 +337,6 @@ def _render(scene: Scene, light: Any, view: View, *, width: int, height: int, sp
             progress: bool) -> Reference:
     import mitsuba as mi
 
-    from prtbench.io.imageio import display, write_exr
-
     start = time.perf_counter()
     mi_scene = mi.load_dict(mitsuba_scene_dict(scene, light, view, width=width, height=height,
                                                bounces=bounces))
@@ -459,7 +344,6 @@ def _render(scene: Scene, light: Any, view: View, *, width: int, height: int, sp
     spp_b = spp - spp_a
     bar = None
     if progress:
-        from tqdm import tqdm
 
         bar = tqdm(total=spp, desc=f"reference {scene.name} {width}x{height}", unit="spp",
                    leave=False)
@@ -513,7 +397,6 @@ def render_references(scene: Scene, light: Any, views: Sequence[View], *, width:
     views = list(views)
     iterator: Any = views
     if progress:
-        from tqdm import tqdm
 
         iterator = tqdm(views, desc=f"references {scene.name}", unit="view")
     return [render_reference(scene, light, view, width=width, height=height, spp=spp,

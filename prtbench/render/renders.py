@@ -23,6 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from prtbench.api.cache import cache_root
+from prtbench.api.errors import InvalidInputError
+from prtbench.io.imageio import read_exr, read_exr_metadata, write_exr
+from prtbench.render.reference import CHECKSUM_KEY, reference_checksum
 
 #: Bump when the layout or header of an entry changes.
 RENDER_VERSION = 1
@@ -91,9 +94,6 @@ def store(run_id: str, view: int, image: np.ndarray, *, exposure: float,
 
 
 def _write(path: Path, image: np.ndarray, metadata: dict[str, str]) -> None:
-    from prtbench.io.imageio import write_exr
-    from prtbench.render.reference import CHECKSUM_KEY, reference_checksum
-
     half = np.asarray(image, np.float32).astype(np.float16)
     metadata = dict(metadata)
     metadata[CHECKSUM_KEY] = reference_checksum(half.astype(np.float32), metadata)
@@ -101,10 +101,6 @@ def _write(path: Path, image: np.ndarray, metadata: dict[str, str]) -> None:
 
 
 def _read_checked(path: Path) -> tuple[np.ndarray, dict[str, str]] | None:
-    from prtbench.api.errors import InvalidInputError
-    from prtbench.io.imageio import read_exr, read_exr_metadata
-    from prtbench.render.reference import CHECKSUM_KEY, reference_checksum
-
     if not path.is_file():
         return None
     try:

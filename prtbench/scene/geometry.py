@@ -21,6 +21,7 @@ import numpy as np
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.model import Scene, TriangleMesh
+from prtbench.scene.uv_pack import pack_atlas  # xatlas loads there, in the function
 
 #: Bump when the atlas parameters or algorithm change, to invalidate cached atlases.
 ATLAS_VERSION = 1
@@ -360,9 +361,6 @@ class Atlas:
 
 def _pack(meshes: list[TriangleMesh], resolution: int, padding: int) -> list[dict[str, np.ndarray]]:
     """Run xatlas on ``meshes`` packed into one ``resolution``² texture (in a child process)."""
-    from prtbench.scene.uv_pack import (
-        pack_atlas,  # xatlas is imported there, lazily: `prtbench list` stays light
-    )
 
     return pack_atlas([(m.positions, m.faces, m.normals) for m in meshes],
                       resolution=resolution, padding=padding)

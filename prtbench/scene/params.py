@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
+from prtbench.api import config as config_mod
 from prtbench.api.config import SEED_HIGH as CONFIG_SEED_HIGH
-from prtbench.api.config import format_bytes, memory_budget
+from prtbench.api.config import format_bytes
 from prtbench.api.errors import InvalidInputError
 
 #: Resident bytes one triangle costs through a run. Measured (ru_maxrss) on a 2M-triangle
@@ -202,7 +203,7 @@ def check_params(scene: str, specs: Mapping[str, SceneParam], values: Mapping[st
         A value of the wrong type, not finite, outside its range or too large for memory
         (one line naming the parameter, the value and what is accepted).
     """
-    budget = memory_budget() if budget is None else budget
+    budget = config_mod.memory_budget() if budget is None else budget
     return {key: (_parse(scene, key, value, specs[key], budget) if key in specs else value)
             for key, value in values.items()}
 

@@ -22,6 +22,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import xatlas
+
+from prtbench.api.errors import InvalidInputError, PrtbenchError
 
 #: How many times a child killed by a signal is retried before the packing is given up.
 ATTEMPTS = 3
@@ -37,7 +40,6 @@ class _NoFit(Exception):
 def _pack_in_process(meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], resolution: int,
                      padding: int) -> list[dict[str, np.ndarray]]:
     """Run xatlas on ``meshes`` ((positions, faces, normals) each) packed into one texture."""
-    import xatlas
 
     def build(texels_per_unit: float) -> "xatlas.Atlas":
         atlas = xatlas.Atlas()
@@ -95,7 +97,6 @@ def pack_atlas(meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *, resol
     PrtbenchError
         xatlas crashed in all :data:`ATTEMPTS` children, or failed with a Python error.
     """
-    from prtbench.api.errors import InvalidInputError, PrtbenchError
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(Path(__file__).resolve().parents[2]), os.environ.get("PYTHONPATH"))

@@ -22,11 +22,17 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+import jinja2
+
 from prtbench.api.errors import InvalidInputError
+from prtbench.bench import outputs
+from prtbench.bench.reproduction import run_table
+from prtbench.render import renders
 from prtbench.site import data as data_mod
 from prtbench.site import plot as plot_mod
 from prtbench.site import stability as stability_mod
 from prtbench.site.images import STOPS, ImageMaker, stop_name
+from prtbench.store import measurements
 
 #: Marks a folder as a site this command wrote (so rebuilding may replace it).
 MARKER = ".prtbench-site"
@@ -75,8 +81,6 @@ def _cell(text: str) -> str:
 
 
 def _environment():
-    import jinja2
-
     env = jinja2.Environment(loader=jinja2.PackageLoader("prtbench.site", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]),
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
@@ -89,7 +93,6 @@ def _environment():
 
 def check_out(out: Path) -> None:
     """``out`` may be written: a creatable folder, absent, empty or an earlier site."""
-    from prtbench.bench import outputs
 
     outputs.check_folder("--out", out)
     foreign = [p for p in out.iterdir() if p.name not in KEPT] if out.is_dir() else []
@@ -139,7 +142,7 @@ def _swap(staging: Path, out: Path) -> None:
 
 def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: bool) -> BuildSummary:
     env = _environment()
-    # The store it was built from, for the browser test (tests/prtbench/test_site_browser.py).
+    # The store it was built from, for the browser test (tests/prtbench/site/test_site_browser.py).
     (root / MARKER).write_text(json.dumps({"written_by": "prtbench report",
                                            "results": str(site.results_path.resolve())}) + "\n")
     static = root / "static"
@@ -200,7 +203,6 @@ def _plotly_js() -> Path:
 
 def _page_images(page: data_mod.ScenePage, maker: ImageMaker) -> dict:
     """Make every PNG of a page; returns the comparison viewer's JSON."""
-    from prtbench.render import renders
 
     folder = f"images/{data_mod.slug(page.scene, page.light, page.profile)}"
     configs = []
@@ -266,7 +268,6 @@ def _overview(site: data_mod.SiteData) -> list[dict]:
 def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root: Path, env, *,
                        maker_cache: Path | None) -> str:
     """A table's or figure's page from its newest complete report run (``--from-store``)."""
-    from prtbench.store import measurements
 
     work = Path(tempfile.mkdtemp(prefix=".reproduction-", dir=root))
     try:
@@ -274,8 +275,6 @@ def _reproduction_page(item: data_mod.Reproduced, site: data_mod.SiteData, root:
         error = ""
         try:
             if item.kind == "table":
-                from prtbench.bench.reproduction import run_table
-
                 md, csv_path = run_table(item.reproduction, profile=item.profile,
                                          results_path=site.results_path, reports_dir=work,
                                          progress=False, from_store=True)

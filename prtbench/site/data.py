@@ -21,7 +21,17 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from prtbench.api import config as config_mod
 from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import METHODS
+from prtbench.api.profiles import PROFILES
+from prtbench.bench.reproduction import FIGURES, TABLES
+from prtbench.io.imageio import read_exr_metadata
+from prtbench.render import renders
+from prtbench.site.stability import collect as stability_pages
+from prtbench.store import measurements
+from prtbench.store.results import ResultsStore
+from prtbench.tradeoff.front import collect_points, mark_fronts, noise_ceiling_db
 
 #: Metrics a configuration's view table prints, in order.
 VIEW_METRICS = ("psnr_masked", "ssim_masked", "flip_masked", "psnr")
@@ -147,8 +157,6 @@ class SiteData:
 def _knobs(method: str, config: dict, profile: str) -> str:
     """The knobs that differ from the method's config in ``profile``, ``k=v`` (the whole
     config if the method is no longer registered), as the Pareto reports print them."""
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS
 
     try:
         defaults = config_mod.to_dict(METHODS.get(method).make_config({}, profile=profile))
@@ -165,8 +173,6 @@ def _config_key(row) -> tuple:
 
 
 def _views(rows: list, cache: Path | None) -> list[ViewEntry]:
-    from prtbench.render import renders
-
     newest: dict[int, object] = {}
     for row in rows:  # insertion order: the last row of a view wins, if its images exist
         entry = renders.load(row.run_id, row.view, root=cache) if row.run_id else None
@@ -183,8 +189,6 @@ def _views(rows: list, cache: Path | None) -> list[ViewEntry]:
 
 
 def _page(scene: str, light: str, profile: str, rows: list, cache: Path | None) -> ScenePage:
-    from prtbench.tradeoff.pareto import collect_points, mark_fronts
-
     plotted = [r for r in rows if r.status == "ok" and r.reference_kind == "path"]
     chosen = {id(r) for r in plotted}
     unplotted = [f"{r.method} view {r.view} ({r.status}, reference {r.reference_kind}): "
@@ -225,9 +229,6 @@ def _page(scene: str, light: str, profile: str, rows: list, cache: Path | None) 
 
 def _reproduced(results_path: Path) -> tuple[list[Reproduced], list[str]]:
     """Tables and figures with a complete report run in the store, newest per profile."""
-    from prtbench.api.profiles import PROFILES
-    from prtbench.bench.reproduction import FIGURES, TABLES
-    from prtbench.store import measurements
 
     found, missing = [], []
     for kind, registry in (("table", TABLES), ("figure", FIGURES)):
@@ -251,7 +252,6 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
     PrtbenchError
         A missing store, or one without rows (one line naming the command that fills it).
     """
-    from prtbench.store.results import ResultsStore
 
     results_path = Path(results_path)
     if not results_path.exists():
@@ -270,7 +270,6 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
         raise PrtbenchError(f"results store '{results_path}' has no ok rows against the path "
                             f"reference; {FILL_COMMAND}")
     reproduced, missing = _reproduced(results_path)
-    from prtbench.site.stability import collect as stability_pages
 
     return SiteData(results_path=results_path, pages=pages, reproduced=reproduced,
                     missing_reproductions=missing, rows=rows,
@@ -282,8 +281,6 @@ def mitsuba_variants(rows: list, *, cache: Path | None = None) -> list[str]:
 
     Rows do not store it; each cached path-traced reference records it in its header.
     """
-    from prtbench.io.imageio import read_exr_metadata
-    from prtbench.render import renders
 
     found, seen = set(), set()
     for row in rows:
@@ -311,7 +308,6 @@ def provenance(rows: list, *, cache: Path | None = None, measured: list[dict] = 
     ``measured`` adds the (profile, git_sha, renderer, device) of a report run's measurement
     rows (:func:`prtbench.store.measurements.provenance`): a figure of panels stores few result rows.
     """
-    from prtbench.tradeoff.pareto import noise_ceiling_db
 
     variants = mitsuba_variants(rows, cache=cache)
 

@@ -20,9 +20,12 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from prtbench.api.cache import cache_root, content_key
+from prtbench.bench.metrics import error_map
 from prtbench.io.assets import sha256_of
+from prtbench.io.imageio import display, read_exr, write_png
 
 #: Exposure stops (EV relative to the scene's exposure) of the full-size display images.
 STOPS = (-2, -1, 0, 1, 2)
@@ -64,8 +67,6 @@ class ImageMaker:
         return self._hashes[path]
 
     def _linear(self, path: Path) -> np.ndarray:
-        from prtbench.io.imageio import read_exr
-
         if path not in self._pixels:
             if len(self._pixels) > 64:  # references repeat across a page; renders do not
                 self._pixels.clear()
@@ -74,7 +75,6 @@ class ImageMaker:
 
     def _png(self, key_parts: tuple, make, target: str) -> str:
         """Cached PNG of ``make()`` ((H, W, 3) float in [0, 1]) copied to ``site/target``."""
-        from prtbench.io.imageio import write_png
 
         cached = self.cache / _KIND / f"{content_key('site-png', IMAGES_VERSION, *key_parts)}.png"
         if cached.is_file():
@@ -94,7 +94,6 @@ class ImageMaker:
 
     def display(self, exr: Path, *, exposure: float, ev: int, target: str) -> str:
         """Full-size display PNG of ``exr`` at ``ev`` stops; returns ``target`` (site-relative)."""
-        from prtbench.io.imageio import display
 
         return self._png(("display", self.source_hash(exr), repr(float(exposure)), int(ev)),
                          lambda: display(self._linear(exr), exposure=float(exposure) * 2.0 ** ev),
@@ -102,7 +101,6 @@ class ImageMaker:
 
     def thumbnail(self, exr: Path, *, exposure: float, target: str) -> str:
         """Thumbnail (0 EV display, longest side :data:`THUMB_SIZE`) of ``exr``."""
-        from prtbench.io.imageio import display
 
         return self._png(("thumb", self.source_hash(exr), repr(float(exposure)), THUMB_SIZE),
                          lambda: _shrink(display(self._linear(exr), exposure=float(exposure))),
@@ -112,9 +110,6 @@ class ImageMaker:
              thumb: bool = False) -> str:
         """FLIP error map (magma) of the 0 EV display images of ``render`` against ``reference``."""
         def make() -> np.ndarray:
-            from prtbench.bench.metrics import error_map
-            from prtbench.io.imageio import display
-
             image = error_map(display(self._linear(render), exposure=float(exposure)),
                               display(self._linear(reference), exposure=float(exposure)))
             return _shrink(image) if thumb else image
@@ -125,7 +120,6 @@ class ImageMaker:
 
 def _shrink(image: np.ndarray) -> np.ndarray:
     """Area-averaged downscale so the longest side is at most :data:`THUMB_SIZE`."""
-    from PIL import Image
 
     height, width = image.shape[:2]
     scale = min(1.0, THUMB_SIZE / max(height, width))

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 
+from prtbench.api.method import METHODS
+
 #: Marker symbols by a method's place among the registered methods (matches the PNG plots'
 #: idea of one shape and colour per method).
 _SYMBOLS = ("circle", "square", "triangle-up", "triangle-down", "diamond", "cross", "x",
@@ -19,8 +21,6 @@ _SYMBOLS = ("circle", "square", "triangle-up", "triangle-down", "diamond", "cros
 
 def _style(method: str) -> tuple[str, str]:
     from plotly.colors import qualitative
-
-    from prtbench.api.method import METHODS
 
     names = METHODS.names()
     index = names.index(method) if method in names else len(names) + sum(map(ord, method))

@@ -13,6 +13,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from prtbench.api.profiles import PROFILES
+from prtbench.stability.matrix import stored_rows, stored_runs
+from prtbench.stability.outcome import OUTCOMES
+from prtbench.stability.report import IMPORTED_FROM, method_summary
+
 #: Number columns of a method's table: (header, row key); the site prints 4 digits.
 COLUMNS = (("PSNR_m (dB)", "psnr_masked"), ("FLIP_m", "flip_masked"),
            ("vs moderate PSNR (dB)", "psnr_vs_moderate"), ("artifact peak", "artifact_peak"),
@@ -68,10 +73,6 @@ def collect(results_path: Path) -> list[StabilityPage]:
     -------
     list of StabilityPage
     """
-    from prtbench.api.profiles import PROFILES
-    from prtbench.stability.matrix import stored_rows, stored_runs
-    from prtbench.stability.outcome import OUTCOMES
-    from prtbench.stability.report import IMPORTED_FROM, method_summary
 
     pages = []
     for profile in PROFILES:

@@ -23,13 +23,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from prtbench.api.errors import PrtbenchError
+from prtbench.api.errors import UnknownNameError
+from prtbench.bench.regress import regression_case
+from prtbench.stability import edges
+from prtbench.stability.case import BASE_SCENE, PROFILES, Case, accepts, case_base_scene
+from prtbench.stability.lights import LIGHTS
 
-#: Profiles the stability matrix runs in (``smoke`` is a subset: fewer values per rule).
-PROFILES = ("smoke", "quick")
-#: The scene every mesh method is measured on, and its light.
-BASE_SCENE = {"scene": "sphere-over-plane", "variant": "diffuse", "light": "sky",
-              "scene_params": {"sphere_segments": 32, "plane_size": 4.0}}
 #: Phong exponents of the material cases (quick; smoke keeps the ends). 10⁵ is past the
 #: material's accepted range [0, 10⁴]: its correct answer is a refusal naming that range.
 SHININESS = {"smoke": (0.0, 1.0e4, 1.0e5), "quick": (0.0, 1.0, 1.0e3, 1.0e4, 1.0e5)}
@@ -144,80 +143,6 @@ KNOB_RULES: dict[str, KnobRule] = {
 }
 
 
-@dataclass(frozen=True)
-class Case:
-    """One extreme setting of one method.
-
-    Attributes
-    ----------
-    name : str
-        Unique within a method, e.g. ``sh_bands=1``, ``light=black``, ``scale=1e-04``.
-    group : str
-        ``moderate``, ``knob``, ``storage``, ``learning``, ``sampling``, ``material``,
-        ``light`` or ``scene``.
-    overrides : dict
-        Config knobs on top of the moderate config.
-    light : str
-        A :data:`prtbench.stability.lights.LIGHTS` name, or ``""`` for the base light.
-    shininess : float or None
-        Phong exponent given to every glossy material (the glossy variant is used).
-    scale, translate : float
-        The scene (and its views) scaled about the origin, then moved by ``translate`` along
-        (1, 1, 1)/√3.
-    geometry : str
-        ``""``, ``grazing`` (camera 10⁻³ of the diagonal above the ground, looking along it),
-        ``edge-on`` (the ground as one triangle, the camera in its plane),
-        ``flipped-normals`` (the non-ground objects' normals negated), ``degenerate``
-        (zero-area and sliver triangles added to the ground), ``t-junction`` (a T-junction
-        on the ground) or ``coincident`` (the ground duplicated in place).
-    scene : str
-        Another registered scene instead of the base scene (a case that needs its own
-        construction: the note says so).
-    scene_params : dict
-        Builder parameters of ``scene`` (default: its defaults), or, without ``scene``, on top
-        of the base scene's.
-    distance_factor : float
-        An SDF scene's distance field multiplied by this (|∇d| = factor: sphere tracing takes
-        1/factor times more steps); the surface, its mesh and the reference are unchanged.
-    derived : dict
-        Config knobs whose value is derived from the case's scene and moderate artifact when
-        the case runs (:func:`prtbench.stability.run.derive_overrides`): ``"signals"`` (the
-        scene's vertex count) or ``"dimension"`` (the stored transfer's values per vertex).
-    timeout_factor : float
-        The case may run this many times the profile's timeout (large scenes, not hangs).
-    note, advice : str
-        What the case probes; what to do instead when it is degraded.
-    compare_image : bool
-        The case renders the moderate case's picture (same light and pixels), so the image
-        itself is compared with the moderate render too (``psnr_vs_moderate``).
-    """
-
-    name: str
-    group: str
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    light: str = ""
-    shininess: float | None = None
-    scale: float = 1.0
-    translate: float = 0.0
-    geometry: str = ""
-    scene: str = ""
-    scene_params: Mapping[str, Any] = field(default_factory=dict)
-    distance_factor: float = 1.0
-    derived: Mapping[str, str] = field(default_factory=dict)
-    timeout_factor: float = 1.0
-    note: str = ""
-    advice: str = ""
-    compare_image: bool = False
-
-    def to_json(self) -> dict[str, Any]:
-        return {**dataclasses.asdict(self), "overrides": dict(self.overrides),
-                "scene_params": dict(self.scene_params), "derived": dict(self.derived)}
-
-    @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> "Case":
-        return cls(**dict(data))
-
-
 def _format_value(value: Any) -> str:
     if isinstance(value, float) and (value != 0 and (abs(value) >= 1e4 or abs(value) < 1e-3)):
         return f"{value:.0e}"
@@ -237,7 +162,6 @@ def base_case(method_cls, *, scene_file: str | None = None,
     regression case's config overrides always apply (they make the smoke profile's training
     or lighting meaningful). ``label`` names the base scene in rows and reports.
     """
-    from prtbench.bench.regress import regression_case
 
     regression = regression_case(method_cls)
     overrides = dict(regression.get("overrides", {}))
@@ -247,8 +171,8 @@ def base_case(method_cls, *, scene_file: str | None = None,
                 "scene_params": dict(scene_params or {}), "overrides": overrides,
                 "label": scene.name, "file": True}
     base = {**BASE_SCENE, "overrides": overrides}
-    if not _accepts(method_cls, base["scene"], "diffuse", base["scene_params"]):
-        if _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
+    if not accepts(method_cls, base["scene"], "diffuse", base["scene_params"]):
+        if accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
             # e.g. factored-brdf: more than one BRDF term needs a glossy material to factor.
             base.update(variant="glossy")
         else:
@@ -256,37 +180,6 @@ def base_case(method_cls, *, scene_file: str | None = None,
                         scene_params=dict(regression.get("scene_params", {})))
     base["label"] = base["scene"]
     return base
-
-
-#: Scenes built while planning, by (name, variant, params): a file is imported once.
-_BUILT: dict[tuple, Any] = {}
-
-
-def case_base_scene(name: str, variant: str, params: Mapping[str, Any]):
-    """The built (registered or file) scene ``name``; cached for the planning process (a file
-    by its path, size and modification time)."""
-    from pathlib import Path
-
-    from prtbench.scene.model import get_scene
-
-    key = (str(name), variant, tuple(sorted((k, str(v)) for k, v in params.items())))
-    if Path(str(name)).is_file():
-        stat = Path(str(name)).stat()
-        key += (stat.st_size, stat.st_mtime_ns)
-    if key not in _BUILT:
-        _BUILT[key] = get_scene(name, variant=variant, **dict(params))
-    return _BUILT[key]
-
-
-def _accepts(method_cls, scene: str, variant: str, scene_params: Mapping[str, Any],
-             overrides: Mapping[str, Any] | None = None) -> bool:
-    """Whether ``method_cls`` validates ``scene`` (smoke config plus ``overrides``)."""
-    try:
-        method_cls.validate(case_base_scene(scene, variant, scene_params),
-                            method_cls.make_config(dict(overrides or {}), profile="smoke"))
-    except PrtbenchError:
-        return False
-    return True
 
 
 def knob_cases(method_cls, *, profile: str) -> list[Case]:
@@ -327,7 +220,6 @@ def knob_cases(method_cls, *, profile: str) -> list[Case]:
 
 def light_cases(method_cls, *, profile: str) -> list[Case]:
     """Every extreme light (:data:`prtbench.stability.lights.LIGHTS`); smoke keeps four."""
-    from prtbench.stability.lights import LIGHTS
 
     names = list(LIGHTS) if profile == "quick" else ["black", "huge-constant", "below-horizon",
                                                      "sun-0.1deg"]
@@ -338,18 +230,12 @@ def light_cases(method_cls, *, profile: str) -> list[Case]:
 #: Extreme lights whose source is far smaller than a cubemap texel at the wavelet methods' default
 #: face resolutions (N = 16-32: texels of 3-6 degrees).
 SMALL_SOURCES = frozenset({"single-texel", "sun-0.1deg"})
-#: Wavelet methods that store their transport per vertex. Named, like
-#: :data:`prtbench.stability.edges.PER_VERTEX_METHODS`, because a method declares no storage kind.
-WAVELET_PER_VERTEX = ("wavelet-vertex", "wavelet-tp")
-
-
 def light_advice(method_cls, light: str) -> str:
     """What to do instead of the extreme ``light``, in the terms of the method's basis."""
-    from prtbench.stability.edges import PER_VERTEX_METHODS
 
-    knobs, name = _knob_names(method_cls), getattr(method_cls, "name", "")
+    knobs, per_vertex = _knob_names(method_cls), method_cls.storage == "per-vertex"
     if not _wavelet_lit(method_cls):
-        if light in SMALL_SOURCES and name in PER_VERTEX_METHODS:
+        if light in SMALL_SOURCES and per_vertex:
             # Measured (vertex, 0.1-degree sun): 19.1 dB; 19.3 at 8 bands; 22.7 with the ground
             # at 64 subdivisions, 25.3 with both. Per texel (texture-tp) 8 bands alone give +2.7.
             return ("subdivide the receiving surfaces, then raise sh_bands (<= 8): per-vertex "
@@ -357,7 +243,7 @@ def light_advice(method_cls, light: str) -> str:
                     "which more bands alone do not restore; or store transfer per texel")
         return ("more SH bands (or windowing) for all-frequency light, or a method that stores "
                 "visibility per pixel")
-    if light in SMALL_SOURCES and name in WAVELET_PER_VERTEX:
+    if light in SMALL_SOURCES and per_vertex:
         # Measured on the base scene's 0.1-degree sun: wavelet-vertex 19.2 dB, 26.3 and 32.9 dB
         # with the ground at 16 and 64 subdivisions; wavelet-tp 19.4 dB at cubemap 16, 32 and
         # 64 and at 256 light terms alike (the shadow is interpolated between vertices).
@@ -495,14 +381,12 @@ def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
     it gets the moderate case only (its refusal is the answer, and every other case would
     repeat it).
     """
-    from prtbench.stability import edges
 
     if profile not in PROFILES:
-        from prtbench.api.errors import UnknownNameError
 
         raise UnknownNameError("stability profile", profile, PROFILES)
     base = base_case(method_cls, scene_file=scene_file, scene_params=scene_params)
-    if base.get("file") and not _accepts(method_cls, base["scene"], base["variant"],
+    if base.get("file") and not accepts(method_cls, base["scene"], base["variant"],
                                          base["scene_params"]):
         return [MODERATE]
     scene = case_base_scene(base["scene"], base["variant"], base["scene_params"])
@@ -513,7 +397,7 @@ def method_cases(method_cls, *, profile: str, scene_file: str | None = None,
     cases += edges.method_edge_cases(method_cls, base=base, scene=scene, profile=profile)
     if scene.sdf is None:
         cases += learning_cases(method_cls)
-    if scene.sdf is None and _accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
+    if scene.sdf is None and accepts(method_cls, base["scene"], "glossy", base["scene_params"]):
         cases += material_cases(method_cls, profile=profile)
     return cases
 
@@ -523,7 +407,6 @@ def select(cases: Sequence[Case], names: Sequence[str] | None) -> list[Case]:
     if not names:
         return list(cases)
     known = {c.name for c in cases}
-    from prtbench.api.errors import UnknownNameError
 
     for name in names:
         if name not in known:

@@ -22,6 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from prtbench.api.errors import PrtbenchError
+from prtbench.stability.lights import LIGHTS as CASE_LIGHTS
+from prtbench.transport import sh
+from prtbench.transport.latlong import lat_long_directions
+
 #: Ringing (negative over positive peak of the reconstruction) above which a row is degraded.
 RINGING_LIMIT = 0.05
 #: SH band counts per profile, and the lights and windows measured.
@@ -35,8 +40,6 @@ GRID_ROWS = 64
 
 
 def _grid():
-    from prtbench.transport.lights import lat_long_directions
-
     rows, cols = GRID_ROWS, 2 * GRID_ROWS
     u = (np.arange(cols) + 0.5) / cols
     v = (np.arange(rows) + 0.5) / rows
@@ -48,7 +51,6 @@ def _grid():
 
 def _ringing_row(full: np.ndarray, light_name: str, bands: int, window_kind: str, dirs,
                  weights, truth) -> dict[str, Any]:
-    from prtbench.transport import sh
 
     # The first n² coefficients of the largest projection are the n-band projection (the basis
     # is orthonormal); the red channel: every case light is grey.
@@ -67,9 +69,6 @@ def _ringing_row(full: np.ndarray, light_name: str, bands: int, window_kind: str
 
 
 def _phong_row(s: float, bands: int = 16) -> dict[str, Any]:
-    from prtbench.api.errors import PrtbenchError
-    from prtbench.transport import sh
-
     row: dict[str, Any] = {"case": f"phong s={s:g} bands={bands}", "group": "sh-core",
                            "bands": bands, "shininess": s}
     try:
@@ -108,7 +107,6 @@ def core_case_names(*, profile: str) -> list[str]:
 
 def core_rows(*, profile: str) -> list[dict[str, Any]]:
     """Every SH-core row of ``profile``, classified (``outcome``, ``reason``, ``advice``)."""
-    from prtbench.stability.lights import LIGHTS as CASE_LIGHTS
 
     dirs, weights = _grid()
     rows = []

@@ -1,10 +1,10 @@
 """Cases at a method's own edges (issue #15), beside the knob, light and scene cases.
 
 * ``mesh=1e6-triangles``: the base scene's sphere tessellated to 10⁶ triangles, for the methods
-  that store transfer per vertex (:data:`PER_VERTEX_METHODS`); precompute time and peak memory
+  that store transfer per vertex (``storage = "per-vertex"``); precompute time and peak memory
   are what it records. The smoke profile uses 10⁵ triangles and says so in the case's name.
 * CPCA at its extremes (per-vertex methods with the ``compress``/``clusters``/``pca_vectors``
-  knobs that accept ``compress=cpca``; texture-tp/tpfl's texel signals are not derived yet): one cluster per vertex (K = N), no PCA vectors (n′ = 0: vector
+  knobs that accept ``compress=cpca``; the per-texel methods' texel signals are not derived yet): one cluster per vertex (K = N), no PCA vectors (n′ = 0: vector
   quantisation) and as many as the transfer has values (n′ = d). N and d are derived from the
   case's scene and the method's uncompressed artifact when the case runs
   (:func:`prtbench.stability.run.derive_overrides`).
@@ -24,12 +24,8 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from prtbench.stability.cases import BASE_SCENE, Case, _accepts
+from prtbench.stability.case import BASE_SCENE, Case, accepts
 
-#: Methods that store their transfer per vertex: their cost grows with the mesh. Named because
-#: a method declares no storage kind the registry could be asked for.
-PER_VERTEX_METHODS = ("vertex", "vertex-tp", "vertex-tpfl", "sloan-matrix", "wavelet-vertex",
-                      "wavelet-tp")
 #: Sphere segments s of the large-mesh case per profile: 2·s·(s/2 − 1) sphere triangles.
 LARGE_MESH_SEGMENTS = {"smoke": 320, "quick": 1002}
 #: The large mesh may take this many times the profile's timeout (it is slow, not hung).
@@ -45,8 +41,9 @@ def sphere_triangles(segments: int) -> int:
 
 
 def large_mesh_cases(method_cls, *, profile: str) -> list[Case]:
-    """The 10⁶-triangle mesh (10⁵ in smoke) for :data:`PER_VERTEX_METHODS`."""
-    if getattr(method_cls, "name", "") not in PER_VERTEX_METHODS:
+    """The 10⁶-triangle mesh (10⁵ in smoke) for methods that store their transfer per vertex
+    (``storage == "per-vertex"``): their cost grows with the mesh."""
+    if method_cls.storage != "per-vertex":
         return []
     segments = LARGE_MESH_SEGMENTS[profile]
     triangles = sphere_triangles(segments) + 2
@@ -67,9 +64,9 @@ def compress_cases(method_cls, *, base: Mapping[str, Any]) -> list[Case]:
     names = {f.name for f in dataclasses.fields(method_cls.Config)}
     # N and d are derived per vertex (run.derive_overrides); the texture methods' signals are
     # texels, whose count the atlas decides, so their extremes wait for a per-texel derivation.
-    if getattr(method_cls, "name", "") not in PER_VERTEX_METHODS:
+    if method_cls.storage != "per-vertex":
         return []
-    if not set(COMPRESS_KNOBS) <= names or not _accepts(
+    if not set(COMPRESS_KNOBS) <= names or not accepts(
             method_cls, base["scene"], base["variant"], base["scene_params"],
             overrides={"compress": "cpca"}):
         return []

@@ -31,7 +31,12 @@ from pathlib import Path
 from typing import Any
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.stability.case import PROFILES
+from prtbench.stability.matrix import TABLE, stored_runs
+from prtbench.stability.outcome import OUTCOMES
 from prtbench.stability.report import CSV_COLUMNS, IMPORTED_FROM
+from prtbench.store import measurements
+from prtbench.store.measurements import Batch
 
 #: Columns holding text (never parsed as numbers: a run id may be all digits).
 TEXT_COLUMNS = frozenset({
@@ -96,9 +101,6 @@ def _parse(value: str, column: str, where: str) -> Any:
 
 
 def _check_row(row: Mapping[str, Any], where: str) -> None:
-    from prtbench.stability.cases import PROFILES
-    from prtbench.stability.outcome import OUTCOMES
-
     for column in ("method", "case", "timestamp"):
         if not row.get(column):
             raise InvalidInputError(f"{where}: empty {column}; {_ACCEPTED}")
@@ -181,7 +183,6 @@ def _identity(row: Mapping[str, Any]) -> tuple[str, ...]:
 
 def _stored_identities(*, results_path: Path | None, table: str) -> set[tuple[str, ...]]:
     """The :data:`IDENTITY` of every row of ``table`` in the store."""
-    from prtbench.store import measurements
 
     frame = measurements.load(table, results_path=results_path)
     return {_identity(r) for r in frame.to_dict(orient="records")}
@@ -190,7 +191,6 @@ def _stored_identities(*, results_path: Path | None, table: str) -> set[tuple[st
 def _batches(rows: Sequence[Mapping[str, Any]], run_id: str) -> list:
     """The rows as :class:`prtbench.store.measurements.Batch` es of ``run_id``, one per distinct
     (revision, renderer, device, time, profile): the stored record carries those."""
-    from prtbench.store.measurements import Batch
 
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for row in rows:
@@ -231,8 +231,6 @@ def import_csv(path: Path, *, results_path: Path | None, table: str | None = Non
         that the store does not already hold, or (``need_complete_run``) no complete run;
         nothing is written then.
     """
-    from prtbench.stability.matrix import TABLE, stored_runs
-    from prtbench.store import measurements
 
     table = table or TABLE
     rows, source = read_rows(Path(path))

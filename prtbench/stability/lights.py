@@ -30,6 +30,14 @@ from functools import lru_cache
 
 import numpy as np
 
+from prtbench.transport.latlong import lat_long_directions
+from prtbench.transport.lights import EnvironmentLight, get_light
+from prtbench.transport.procedural import sun_direction
+
+#: Direction of the small and point-like suns: the built-in ``sun`` light's (55° up, 60° from
+#: +Z towards +X), so their shadows fall where that light's do.
+SUN_DIRECTION = sun_direction(55.0, 60.0)
+
 #: Radiance of the huge constant light.
 HUGE_RADIANCE = 1.0e6
 #: Dynamic range of the near-delta sun (sun texel / background texel).
@@ -61,7 +69,6 @@ class StabilityLight:
 
 def _directions(height: int) -> np.ndarray:
     """Sample directions (H, 2H, 3) of a lat-long map (Mitsuba's sample positions)."""
-    from prtbench.transport.lights import lat_long_directions
 
     w = 2 * height
     u = (np.arange(w) + 0.5) / w
@@ -70,8 +77,6 @@ def _directions(height: int) -> np.ndarray:
 
 
 def _light(name: str, image: np.ndarray):
-    from prtbench.transport.lights import EnvironmentLight
-
     return EnvironmentLight(f"stability-{name}", image.astype(np.float32),
                             source=f"procedural:stability-{name}")
 
@@ -97,7 +102,6 @@ def below_horizon():
 
 def _irradiance_scale(image_mask: np.ndarray, height: int, direction: np.ndarray) -> float:
     """Radiance that makes the texels of ``image_mask`` deliver irradiance π along ``direction``."""
-    from prtbench.transport.lights import EnvironmentLight
 
     probe = EnvironmentLight("probe", np.repeat(image_mask[..., None], 3, -1).astype(np.float32))
     dirs = probe.texel_directions()
@@ -107,8 +111,6 @@ def _irradiance_scale(image_mask: np.ndarray, height: int, direction: np.ndarray
 
 
 def _sun_direction() -> np.ndarray:
-    from prtbench.transport.lights import SUN_DIRECTION
-
     return np.asarray(SUN_DIRECTION, dtype=np.float64)
 
 
@@ -141,7 +143,6 @@ def near_delta_sun():
 @lru_cache(maxsize=None)
 def hdri_2048():
     """The ``sky`` light's bilinear interpolant sampled on a 2048 × 1024 map."""
-    from prtbench.transport.lights import get_light
 
     sky = get_light("sky")
     dirs = _directions(1024)

@@ -17,9 +17,17 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from prtbench.stability.cases import Case, base_case, method_cases, select
+from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import METHODS
+from prtbench.bench.runner import device_description
+from prtbench.stability.case import Case
+from prtbench.stability.cases import base_case, method_cases, select
+from prtbench.stability.core import core_rows
 from prtbench.stability.outcome import classify
 from prtbench.stability.report import IMPORTED_FROM
+from prtbench.stability.run import run_case
+from prtbench.store import measurements
+from prtbench.store.results import ResultsStore
 
 #: Name of the measurement table (and of the report run).
 TABLE = "stability"
@@ -65,7 +73,6 @@ def plan(methods: Sequence[str], *, profile: str, cases: Sequence[str] | None = 
     InvalidInputError
         A scene file that cannot be imported (the scenefile message).
     """
-    from prtbench.api.method import METHODS
 
     out = []
     known: set[str] = set()
@@ -111,9 +118,6 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
         An asset file as the base scene (:func:`plan`); its rows go to
         :func:`table_name` of the scene's name.
     """
-    from prtbench.bench.runner import device_description
-    from prtbench.stability.run import run_case
-    from prtbench.store import measurements
 
     planned = plan(methods, profile=profile, cases=cases, scene_file=scene_file,
                    scene_params=scene_params)
@@ -132,6 +136,9 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                 measured = run_case(method, case, profile=profile, base=base,
                                     results_path=results_path, out_dir=folder,
                                     moderate_exr=moderate_exr, timeout_s=timeout_s)
+                if measured.get("rows"):  # the client alone writes the store
+                    ResultsStore(results_path).append(measured.pop("rows"))
+                measured.pop("rows", None)
                 is_moderate = case.name == "moderate"
                 outcome, reason = classify(measured, None if is_moderate else (moderate or {}))
                 if is_moderate:
@@ -154,7 +161,6 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
                 _log(echo, f"[stability] {method} {case.name}: {outcome} ({reason}) "
                            f"{measured.get('wall_s', 0.0):.1f} s")
     if CORE in methods:
-        from prtbench.stability.core import core_rows
 
         for row in core_rows(profile=profile):
             measurements.record(table, [row], results_path=results_path, run_id=run_id,
@@ -168,7 +174,6 @@ def run_matrix(methods: Sequence[str], *, profile: str, results_path: Path | Non
 def load_rows(run_id: str, *, results_path: Path | None,
               table: str = TABLE) -> list[dict[str, Any]]:
     """The stored rows of one matrix run (of measurement ``table``), in measured order."""
-    from prtbench.store import measurements
 
     frame = measurements.load(table, run_ids=[run_id], results_path=results_path)
     rows = frame.to_dict(orient="records")
@@ -191,8 +196,6 @@ def stored_rows(*, profile: str, results_path: Path | None, partial: bool = Fals
     PrtbenchError
         No (complete, unless ``partial``) stability run for ``profile`` in the store.
     """
-    from prtbench.api.errors import PrtbenchError
-    from prtbench.store import measurements
 
     runs, complete = stored_runs(profile=profile, results_path=results_path, partial=partial,
                                  table=table)
@@ -231,7 +234,6 @@ def stored_runs(*, profile: str, results_path: Path | None, partial: bool = Fals
     Both empty when the store or its tables do not exist; an unusable store raises
     :class:`~prtbench.api.errors.InvalidInputError` (the store's reader).
     """
-    from prtbench.store import measurements
 
     complete = {r[0] for r in measurements._read(  # noqa: SLF001 - the store's read-only reader
         results_path, "SELECT run_id FROM report_runs WHERE kind = 'table' AND name = ? AND "
@@ -245,7 +247,6 @@ def stored_runs(*, profile: str, results_path: Path | None, partial: bool = Fals
 def _catalogue_order(method: str, profile: str):
     """Sort key of a method's rows: moderate first, then the catalogue's order (cases it no
     longer has last, by name)."""
-    from prtbench.api.method import METHODS
 
     try:
         names = [c.name for c in method_cases(METHODS.get(method), profile=profile)]

@@ -18,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from prtbench.api.cache import atomic_path
 from prtbench.stability.outcome import FLIP_MARGIN, OUTCOMES, PSNR_MARGIN_DB
 
 #: The column (and stored key) naming the CSV a row was imported from
@@ -296,7 +297,6 @@ def write_reports(rows: Sequence[Mapping[str, Any]], folder: Path, *,
     content hash), so it never overwrites the committed ``table-stability.*``. ``expected`` and
     ``notes``: :func:`format_markdown`.
     """
-    from prtbench.api.cache import atomic_path
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

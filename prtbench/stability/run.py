@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import multiprocessing
+import resource
 import time
 import traceback
 from collections.abc import Mapping
@@ -23,7 +23,18 @@ from typing import Any
 
 import numpy as np
 
-from prtbench.stability.cases import Case
+from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import load_or_precompute
+from prtbench.bench import metrics
+from prtbench.bench.executors import Lost, SubprocessExecutor
+from prtbench.bench.job import Job, Outputs
+from prtbench.bench.runner import execute, prepare, summary_rows
+from prtbench.io import imageio
+from prtbench.render.reference import render_reference
+from prtbench.stability.case import Case
+from prtbench.stability.lights import LIGHTS
+from prtbench.stability.scenes import case_scene
+from prtbench.transport.raytrace import geometry_mask
 
 #: Seconds a case may run before it counts as a hang (``failed``), per profile.
 TIMEOUTS = {"smoke": 300.0, "quick": 1200.0}
@@ -80,29 +91,20 @@ def artifact_stats(arrays: Mapping[str, np.ndarray], dtype: np.dtype) -> dict[st
             "artifact_values": values}
 
 
-def _request(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
-             results_path: Path | None, out_dir: Path):
-    from prtbench.bench.runner import RunRequest
-    from prtbench.stability.lights import LIGHTS
-
+def case_job(method: str, case: Case, *, profile: str, base: Mapping[str, Any]) -> Job:
+    """The job of ``case``: the method's moderate setting on the base scene, with the case's
+    overrides, light, material variant and scene parameters (one view)."""
     light = LIGHTS[case.light].build() if case.light else base["light"]
     variant = "glossy" if case.shininess is not None else base["variant"]
     params = (dict(case.scene_params) if case.scene else
               {**base.get("scene_params", {}), **case.scene_params})
-    return RunRequest(method=method, scene=case.scene or base["scene"], variant=variant,
-                      light=light, views=1, profile=profile,
-                      overrides={**base.get("overrides", {}), **case.overrides},
-                      scene_params=params, out_dir=out_dir,
-                      results_path=results_path, store_results=True, write_images=True)
+    return Job(method=method, scene=case.scene or base["scene"], label={"case": case.name},
+               variant=variant, light=light, views=1, profile=profile,
+               overrides={**base.get("overrides", {}), **case.overrides}, scene_params=params)
 
 
 def _inspect(prepared, summary, case: Case, moderate_exr: str | None) -> dict[str, Any]:
     """Artifact and image facts of a finished run (the artifact is a cache hit)."""
-    from prtbench.api.method import load_or_precompute
-    from prtbench.bench import metrics
-    from prtbench.bench.runner import geometry_mask
-    from prtbench.io import imageio
-    from prtbench.render.reference import render_reference
 
     scene, config = prepared.scene, prepared.config
     artifact = load_or_precompute(prepared.method_cls, scene, config, progress=False)
@@ -142,9 +144,8 @@ def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, i
     method's uncompressed artifact at the case's config without the derived knobs (the
     moderate case's artifact: a cache hit once it ran), i.e. the d of its CPCA signals, or
     what the method's ``compress_dimension(config)`` declares where its artifact is not a
-    dense per-vertex array (wavelet-vertex's sparse Haar rows).
+    dense per-vertex array (sparse Haar rows).
     """
-    from prtbench.api.method import load_or_precompute
 
     out = {}
     for knob, what in derived.items():
@@ -153,9 +154,9 @@ def derive_overrides(prepared, scene, derived: Mapping[str, str]) -> dict[str, i
         elif what == "dimension":
             config = dataclasses.replace(prepared.config, compress="none", clusters=None,
                                          pca_vectors=None)
-            declared = getattr(prepared.method_cls, "compress_dimension", None)
+            declared = prepared.method_cls.compress_dimension(config)
             if declared is not None:  # signals that are not an artifact array (sparse rows)
-                out[knob] = int(declared(config))
+                out[knob] = int(declared)
                 continue
             arrays = load_or_precompute(prepared.method_cls, scene, config,
                                         progress=False).arrays
@@ -181,27 +182,25 @@ def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, An
         precompute time, status, and the facts of :func:`_inspect`; always ``wall_s`` and
         ``peak_rss_bytes``.
     """
-    import resource
-
-    from prtbench.api.errors import PrtbenchError
-    from prtbench.bench.runner import execute, prepare
-    from prtbench.stability.scenes import case_scene
 
     start = time.perf_counter()
     out: dict[str, Any] = {"error_kind": "", "error": ""}
     try:
+        outputs = Outputs(out_dir=out_dir)
         if case.derived:  # resolved on the case's scene, then run as fixed overrides
-            first = prepare(_request(method, dataclasses.replace(case, derived={}), profile=profile,
-                                     base=base, results_path=results_path, out_dir=out_dir))
+            first = prepare(case_job(method, dataclasses.replace(case, derived={}),
+                                     profile=profile, base=base), outputs=outputs, store=False)
             derived = derive_overrides(first, case_scene(first.scene, case), case.derived)
             out["derived_overrides"] = derived
             case = dataclasses.replace(case, overrides={**case.overrides, **derived}, derived={})
-        prepared = prepare(_request(method, case, profile=profile, base=base,
-                                    results_path=results_path, out_dir=out_dir))
+        prepared = prepare(case_job(method, case, profile=profile, base=base), outputs=outputs,
+                           store=False)
         scene = case_scene(prepared.scene, case)
         prepared.method_cls.validate(scene, prepared.config)
         prepared = dataclasses.replace(prepared, scene=scene)
         summary = execute(prepared, progress=False, echo=False)
+        # The rows go back to the process that runs the matrix, which alone writes the store.
+        out["rows"] = summary_rows(summary, scene)
         view = summary.views[0]
         out.update(run_id=summary.run_id, status=summary.status,
                    status_reason=summary.status_reason, frame_ms=view.frame_ms,
@@ -225,49 +224,26 @@ def measure_case(method: str, case: Case, *, profile: str, base: Mapping[str, An
     return out
 
 
-def _child(conn, method: str, case_json: dict, kwargs: dict) -> None:
-    """Spawned process body: measure the case and send the result back."""
-    result = measure_case(method, Case.from_json(case_json), **kwargs)
-    conn.send(result)
-    conn.close()
+def _measure_case_json(item: tuple[str, dict, dict]) -> dict[str, Any]:
+    """:func:`measure_case` of ``(method, case as JSON, keyword arguments)`` (picklable)."""
+    method, case_json, kwargs = item
+    return measure_case(method, Case.from_json(case_json), **kwargs)
 
 
 def run_case(method: str, case: Case, *, profile: str, base: Mapping[str, Any],
              results_path: Path | None, out_dir: Path, moderate_exr: str | None = None,
              timeout_s: float | None = None) -> dict[str, Any]:
-    """:func:`measure_case` in a fresh spawned process, killed after ``timeout_s``.
+    """:func:`measure_case` in a fresh spawned process, killed after ``timeout_s``
+    (:class:`prtbench.bench.executors.SubprocessExecutor`).
 
     A process that dies without an answer is ``error_kind="crash"`` (with its exit code); one
     still running after the timeout is killed and ``error_kind="timeout"``.
     """
     timeout_s = (TIMEOUTS[profile] if timeout_s is None else float(timeout_s)) * case.timeout_factor
-    ctx = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
-    parent, child = ctx.Pipe(duplex=False)
     kwargs = {"profile": profile, "base": dict(base), "results_path": results_path,
               "out_dir": out_dir, "moderate_exr": moderate_exr}
-    process = ctx.Process(target=_child, args=(child, method, case.to_json(), kwargs),
-                          daemon=True)
-    start = time.perf_counter()
-    process.start()
-    child.close()
-    result = None
-    try:
-        if parent.poll(timeout_s):
-            try:
-                result = parent.recv()
-            except EOFError:
-                result = None
-    finally:
-        process.join(5.0 if result is not None else 0.1)
-        if process.is_alive():
-            process.kill()
-            process.join()
-        parent.close()
-    wall = time.perf_counter() - start
-    if result is not None:
-        return result
-    if wall >= timeout_s:
-        return {"error_kind": "timeout", "error": f"no answer after {timeout_s:g} s (killed)",
-                "wall_s": wall}
-    return {"error_kind": "crash", "error": f"process died with exit code {process.exitcode}",
-            "wall_s": wall}
+    result = SubprocessExecutor.run_one(_measure_case_json, (method, case.to_json(), kwargs),
+                                        timeout_s=timeout_s)
+    if isinstance(result, Lost):
+        return {"error_kind": result.kind, "error": result.error, "wall_s": result.seconds}
+    return result

@@ -16,7 +16,10 @@ import numpy as np
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
-from prtbench.transport.sdf.nodes import SdfNode
+from prtbench.scene.params import check_extent
+from prtbench.stability.lights import LIGHTS
+from prtbench.transport.sdf import SdfSurface
+from prtbench.transport.sdf.nodes import SdfNode, glsl_float
 
 #: Height of the grazing camera above the ground, as a fraction of the scene's diagonal.
 GRAZING_HEIGHT = 1e-3
@@ -43,8 +46,6 @@ def _transform_view(view: View, scale: float, offset: np.ndarray) -> View:
 
 
 def _transform_sdf(sdf, scale: float, offset: np.ndarray):
-    from prtbench.transport.sdf import SdfSurface
-
     root = sdf.root.scale(scale) if scale != 1.0 else sdf.root
     if np.any(offset):
         root = root.translate(*(float(c) for c in offset))
@@ -73,8 +74,6 @@ class DistanceScale(SdfNode):
         return d * self.factor, m
 
     def _emit(self, cg, p):
-        from prtbench.transport.sdf.nodes import glsl_float
-
         d, m = self.child._emit(cg, p)
         return cg.let("float", "d", f"{d} * {glsl_float(self.factor)}"), m
 
@@ -186,8 +185,6 @@ def case_scene(base: Scene, case) -> Scene:
         A Phong exponent outside the material's range, or a transformed scene outside the
         extents float32 ray offsets allow (:func:`prtbench.scene.params.check_extent`).
     """
-    from prtbench.scene.params import check_extent
-    from prtbench.stability.lights import LIGHTS
 
     offset = TRANSLATE_AXIS * case.translate
     scale = float(case.scale)

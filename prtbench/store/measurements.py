@@ -31,7 +31,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from prtbench.api.errors import InvalidInputError, PrtbenchError
+import numpy as np
+
+from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.store.results import PROFILES, ResultsStore, default_path
+from prtbench.store.results import git_sha as current_sha
 
 _BUSY_TIMEOUT_S = 60.0
 REPORT_KINDS = ("table", "figure")
@@ -85,7 +89,6 @@ def strict(value: Any) -> Any:
 
 def _write(results_path: Path | None, statements) -> None:
     """Run ``statements(conn)`` in one immediate transaction on the store at ``results_path``."""
-    from prtbench.store.results import ResultsStore
 
     with ResultsStore(results_path).transaction() as conn:
         for sql in _SCHEMA:
@@ -95,7 +98,6 @@ def _write(results_path: Path | None, statements) -> None:
 
 def store_path(results_path: str | Path | None) -> Path:
     """``results_path``, or the default results store (:func:`prtbench.store.results.default_path`)."""
-    from prtbench.store.results import default_path
 
     return Path(results_path) if results_path is not None else default_path()
 
@@ -124,16 +126,12 @@ def _read(results_path: str | Path | None, sql: str, params: Sequence[Any] = ())
 
 
 def _encode_image(array) -> bytes:
-    import numpy as np
-
     buf = io.BytesIO()
     np.save(buf, np.ascontiguousarray(array), allow_pickle=False)
     return zlib.compress(buf.getvalue(), 6)
 
 
 def _decode_image(blob: bytes):
-    import numpy as np
-
     return np.load(io.BytesIO(zlib.decompress(blob)), allow_pickle=False)
 
 
@@ -161,7 +159,6 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
     images : dict of str to ndarray, optional
         Panels stored losslessly under ``run_id`` (keys unique within the run).
     """
-    from prtbench.store.results import git_sha as current_sha
 
     _check_profile(profile)
     payloads = [json.dumps(strict(dict(r)), sort_keys=True, allow_nan=False) for r in rows]
@@ -179,10 +176,7 @@ def record(name: str, rows: Sequence[Mapping[str, Any]], *, results_path: str | 
 
 
 def _check_profile(profile: str) -> None:
-    from prtbench.store.results import PROFILES
-
     if profile not in PROFILES:
-        from prtbench.api.errors import UnknownNameError
 
         raise UnknownNameError("profile", profile, PROFILES)
 
@@ -234,7 +228,6 @@ def record_batches(name: str, batches: Sequence[Batch], *, results_path: str | P
     For rows carried over from an earlier record (:mod:`prtbench.stability.importing`): each
     batch keeps its own revision, renderer, device and time, where :func:`record` stamps now.
     """
-    from prtbench.store.results import git_sha as current_sha
 
     for batch in batches:
         _check_profile(batch.profile)
@@ -294,7 +287,6 @@ def _keep_integers(frame, records: list[dict]) -> None:
     Python ints, NaN where a row has no value: numeric reductions and ``x != x`` NaN tests
     work as before. Columns every row fills are int64 already.
     """
-    import math
 
     import pandas as pd
 
@@ -342,7 +334,6 @@ def complete_report(kind: str, name: str, *, profile: str, run_id: str,
                     members: Mapping[str, Mapping[str, Any]], results_path: str | Path | None,
                     git_sha: str | None = None) -> ReportRun:
     """Mark a report run complete (every row stored); returns it as read back."""
-    from prtbench.store.results import git_sha as current_sha
 
     if kind not in REPORT_KINDS:
         raise InvalidInputError(f"report kind '{kind}'; accepted: {', '.join(REPORT_KINDS)}")

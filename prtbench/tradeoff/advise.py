@@ -19,9 +19,9 @@ A target nothing reaches is not an error: :class:`Advice` holds the closest conf
 (least relative shortfall) and ``hint`` says what would be needed, from the knobs that sat at
 the limit of their range and the analysis; the CLI exits 1.
 
-``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones). The
-defaults reach the sibling modules ``analyze`` and ``cost`` when present, and evaluate cells
-serially in this process; the lines to change for ``sweep.run_cells`` are marked WIRING.
+``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones); the
+defaults are :func:`prtbench.tradeoff.analyze.analyze_scene` and
+:func:`prtbench.tradeoff.cost.cost_value`.
 """
 
 from __future__ import annotations
@@ -33,12 +33,23 @@ from pathlib import Path
 from typing import Any
 
 from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.api.method import METHODS
+from prtbench.api.profiles import get_profile
+from prtbench.bench import outputs
+from prtbench.bench.cluster import one_line
+from prtbench.bench.executors import Executor, make_executor
+from prtbench.bench.job import Job
+from prtbench.bench.runner import prepare
+from prtbench.bench.submit import rows_as_dicts, submit
+from prtbench.scene.registry import SCENES, get_scene
+from prtbench.store.results import default_path
+from prtbench.tradeoff.analyze import analyze_scene
+from prtbench.tradeoff.cost import cost_value
 from prtbench.tradeoff.expressions import COSTS, Constraint, parse_constraints
 from prtbench.tradeoff.search import (
     CellResult,
     Evaluation,
     Judge,
-    as_dict,
     best_per_method,
     brief,
     fmt,
@@ -46,9 +57,7 @@ from prtbench.tradeoff.search import (
     search,
 )
 from prtbench.tradeoff.search_space import Candidate, SearchSpace, analysis_json, build_space
-
-#: Row field of each cost kind the fallback ``cost_fn`` reads.
-_ROW_COSTS = {"frame_ms": "frame_ms", "memory": "memory_bytes", "precompute": "precompute_s"}
+from prtbench.transport.lights import get_light
 
 
 @dataclass
@@ -87,47 +96,17 @@ def _evaluation_json(e: Evaluation) -> dict[str, Any]:
             "cost": e.cost}
 
 
-# --- defaults (fallbacks until the sibling modules are merged) --------------------------------
-
-def _default_analysis(scene, light, *, light_changes: str):
-    try:
-        from prtbench.tradeoff.analyze import (
-            analyze_scene,  # WIRING: prtbench.tradeoff.analyze (analyze helper)
-        )
-    except ImportError:
-        raise PrtbenchError("advise needs the scene analysis (prtbench.tradeoff.analyze), which "
-                            "this build lacks; pass analysis= explicitly") from None
-    return analyze_scene(scene, light, light_changes=light_changes)  # WIRING
-
-
-def _row_cost(row: Mapping, kind: str) -> float:
-    """Fallback cost: frame_ms, memory (bytes) or precompute (s) straight from the row."""
-    if kind not in _ROW_COSTS:
-        raise InvalidInputError(f"--cost {kind} needs the operation-count model "
-                                "(prtbench.tradeoff.cost), which this build lacks; accepted "
-                                f"here: {', '.join(_ROW_COSTS)}")
-    value = row.get(_ROW_COSTS[kind])
-    return math.inf if value is None else float(value)
-
-
-def _default_cost_fn() -> Callable[[Mapping, str], float]:
-    try:
-        from prtbench.tradeoff.cost import (
-            cost_value,  # WIRING: prtbench.tradeoff.cost (pareto helper)
-        )
-    except ImportError:
-        return _row_cost
-    return cost_value
-
-
-def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None = None,
-                    store: bool = False) -> list[CellResult]:
-    """Run cells one after another in this process through the ordinary runner.
+def evaluate_jobs(cells: Sequence[Job], *, profile: str, executor: Executor | None = None,
+                  results_path: Path | None = None, store: bool = False) -> list[CellResult]:
+    """Measure ``cells`` through the one submit path, one result per cell, in order.
 
     Parameters
     ----------
-    cells : sequence of prtbench.bench.reproduction.Cell
+    cells : sequence of Job
     profile : str
+    executor : Executor, optional
+        Where they run (default: serially in this process); ``advise`` screens its candidates
+        on Dask workers.
     results_path : Path, optional
         The store the rows go to when ``store``.
     store : bool
@@ -136,26 +115,23 @@ def serial_evaluate(cells: Sequence, *, profile: str, results_path: Path | None 
     Returns
     -------
     list of CellResult
-        One per cell, in order; a cell that fails has its one-line error and no rows.
+        One per cell; a cell that is refused or fails has its one-line error and no rows
+        (one failing cell never aborts the search).
     """
-    from prtbench.bench.runner import RunRequest, execute, prepare, summary_rows
-
-    out = []
-    for cell in cells:
-        try:
-            prepared = prepare(RunRequest(
-                method=cell.method, scene=cell.scene, variant=cell.variant, light=cell.light,
-                views=cell.views, profile=profile, reference=cell.reference,
-                overrides=dict(cell.overrides), scene_params=dict(cell.scene_params),
-                out_dir=None, results_path=results_path, store_results=store,
-                write_images=False))
-            summary = execute(prepared, progress=False, echo=False)
-            out.append(CellResult([as_dict(r) for r in summary_rows(summary, prepared.scene)]))
-        except KeyboardInterrupt:
-            raise
-        except Exception as exc:  # one failing cell must not abort the search
-            text = str(exc).splitlines()[0] if str(exc) else ""
-            out.append(CellResult([], f"{type(exc).__name__}: {text}"))
+    out: list[CellResult | None] = [None] * len(cells)
+    valid = []
+    for i, cell in enumerate(cells):
+        try:  # a candidate the method refuses is a failed cell, not an error of the search
+            prepare(cell, profile=profile, results_path=results_path, store=store)
+            valid.append(i)
+        except PrtbenchError as exc:
+            out[i] = CellResult([], one_line(exc))
+    if valid:
+        submission = submit([cells[i] for i in valid], profile=profile, executor=executor,
+                            results_path=results_path, store=store, progress=False)
+        for i, result in zip(valid, submission.per_job):
+            out[i] = (CellResult(rows_as_dicts(result.rows)) if result.status == "done"
+                      else CellResult([], result.error))
     return out
 
 
@@ -210,7 +186,7 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
            cost_fn: Callable[[Mapping, str], float] | None = None,
            verify: Callable | None = None, methods: Sequence[str] | None = None,
            results_path: Path | None = None, band_margin: int = 2, keep_fraction: float = 0.5,
-           echo: bool = False) -> Advice:
+           workers: int | None = None, echo: bool = False) -> Advice:
     """Recommend the cheapest configuration of any method that meets ``target`` within ``budget``.
 
     Parameters
@@ -231,13 +207,12 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     analysis : SceneAnalysis-like, optional
         Default: :func:`prtbench.tradeoff.analyze.analyze_scene`.
     evaluate : callable ``(cells, *, profile) -> list``, optional
-        Measures cells, one result per cell (rows, or a sweep ``CellOutcome``); default
-        :func:`serial_evaluate` without storing.
+        Measures cells, one result per cell (a CellResult, a JobResult or rows); default
+        :func:`evaluate_jobs` on Dask workers (``workers``), without storing.
     cost_fn : callable ``(row, kind) -> float``, optional
-        Default: :func:`prtbench.tradeoff.cost.cost_value` when present, else the row's own
-        frame_ms / memory_bytes / precompute_s.
+        Default: :func:`prtbench.tradeoff.cost.cost_value`.
     verify : callable ``(cells, *, profile) -> list``, optional
-        The final, stored run; default :func:`serial_evaluate` with ``store=True``.
+        The final, stored run; default :func:`evaluate_jobs` in this process, stored.
     methods : sequence of str, optional
         Search only these registered methods (default: all).
     results_path : Path, optional
@@ -246,6 +221,9 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         SH bands searched above the analysis' required count.
     keep_fraction : float
         Fraction of methods kept after the ``smoke`` screening (at least two).
+    workers : int, optional
+        Dask workers of the screening runs (default: one per core; 0: serially in this
+        process).
 
     Returns
     -------
@@ -257,13 +235,6 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         Bad scene, scene parameter, light, variant, profile, expressions, cost kind or results
         store (all checked before any work).
     """
-    from prtbench.api.method import METHODS
-    from prtbench.api.profiles import get_profile
-    from prtbench.bench import outputs
-    from prtbench.bench.reproduction import Cell
-    from prtbench.scene.model import SCENES, get_scene
-    from prtbench.store.results import default_path
-    from prtbench.transport.lights import get_light
 
     # Everything a user can get wrong, before any work.
     get_profile(profile)
@@ -282,60 +253,62 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     scene_params = dict(scene_params or {})
     scene_obj = get_scene(scene, variant=variant, **scene_params)
     light_obj = get_light(light or scene_obj.default_light)
-    cost_fn = cost_fn or _default_cost_fn()
-    if cost_fn is _row_cost:
-        needs = {cost, *(c.name for c in constraints if c.kind == "cost")}
-        for kind in sorted(needs - set(_ROW_COSTS)):
-            _row_cost({}, kind)  # raises naming the missing model
+    cost_fn = cost_fn or cost_value
     if verify is None:
         outputs.check_results_store("--results", results_path or default_path())
         outputs.check_cache()
-    # WIRING (sweep): evaluate = evaluate or (lambda cells, *, profile: run_cells(
-    #     cells, profile=profile, progress=False).cells) -- CellOutcomes are accepted as they are.
-    evaluate = evaluate or (lambda cells, *, profile: serial_evaluate(cells, profile=profile))
-    verify = verify or (lambda cells, *, profile: serial_evaluate(
+    # Screening runs on Dask workers (one per core), the verification run alone in this
+    # process, so its stored frame times are taken on a quiet machine.
+    screening = None if evaluate is not None else make_executor(workers=workers)
+    evaluate = evaluate or (lambda cells, *, profile: evaluate_jobs(
+        cells, profile=profile, executor=screening))
+    verify = verify or (lambda cells, *, profile: evaluate_jobs(
         cells, profile=profile, results_path=results_path, store=True))
 
-    if analysis is None:
-        analysis = _default_analysis(scene_obj, light_obj, light_changes=light_changes)
-    space = build_space(scene_obj, analysis, profile=profile, methods=methods,
-                        band_margin=band_margin)
-    if not space.methods:
-        raise PrtbenchError("no method can model this scene within the analysis' requirements: "
-                            + "; ".join(f"{p['method']}: {p['why']}" for p in space.pruned))
+    try:
+        if analysis is None:
+            analysis = analyze_scene(scene_obj, light_obj, light_changes=light_changes)
+        space = build_space(scene_obj, analysis, profile=profile, methods=methods,
+                            band_margin=band_margin)
+        if not space.methods:
+            raise PrtbenchError("no method can model this scene within the analysis' requirements: "
+                                + "; ".join(f"{p['method']}: {p['why']}" for p in space.pruned))
 
-    def cell(c: Candidate) -> Cell:
-        return Cell(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
-                    light=light, overrides=c.overrides, scene_params=scene_params)
+        def cell(c: Candidate) -> Job:
+            return Job(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
+                        light=light, overrides=c.overrides, scene_params=scene_params)
 
-    def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:
-        results = list(evaluate([cell(c) for c in batch], profile=at))
-        if len(results) != len(batch):
-            raise PrtbenchError(f"evaluate returned {len(results)} results for {len(batch)} cells")
-        return [normalise(r) for r in results]
+        def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:
+            results = list(evaluate([cell(c) for c in batch], profile=at))
+            if len(results) != len(batch):
+                raise PrtbenchError(f"evaluate returned {len(results)} results for {len(batch)} cells")
+            return [normalise(r) for r in results]
 
-    judge = Judge(constraints, cost, cost_fn)
-    names = [m.method for m in space.methods]
-    history, notes, pruned = [], [], list(space.pruned)
-    starts: dict[str, Candidate] = {}
-    if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
-        screen = search(space, names, profile="smoke", run_batch=run_batch, judge=judge, echo=echo)
-        history += screen
-        best = best_per_method(screen)
-        ranked = sorted(best.values(), key=Evaluation.key)
-        keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
-        kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
-        for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
-            pruned.append({"method": e.candidate.method, "why": (
-                f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
-                + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
-        names = [e.candidate.method for e in kept]
-        starts = {e.candidate.method: e.candidate for e in kept}
-        notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
-                     f"{', '.join(names)}")
-    final = search(space, names, profile=profile, run_batch=run_batch, judge=judge,
-                   starts=starts, echo=echo)
-    history += final
+        judge = Judge(constraints, cost, cost_fn)
+        names = [m.method for m in space.methods]
+        history, notes, pruned = [], [], list(space.pruned)
+        starts: dict[str, Candidate] = {}
+        if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
+            screen = search(space, names, profile="smoke", run_batch=run_batch, judge=judge, echo=echo)
+            history += screen
+            best = best_per_method(screen)
+            ranked = sorted(best.values(), key=Evaluation.key)
+            keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
+            kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
+            for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
+                pruned.append({"method": e.candidate.method, "why": (
+                    f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
+                    + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
+            names = [e.candidate.method for e in kept]
+            starts = {e.candidate.method: e.candidate for e in kept}
+            notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
+                         f"{', '.join(names)}")
+        final = search(space, names, profile=profile, run_batch=run_batch, judge=judge,
+                       starts=starts, echo=echo)
+        history += final
+    finally:
+        if screening is not None:
+            screening.close()
     ranked = sorted(final, key=Evaluation.key)
     if not ranked or ranked[0].row is None:
         raise PrtbenchError("no candidate could be measured: "

@@ -24,12 +24,17 @@ Methods are ruled out through their own ``light_dependence`` and ``light_baking_
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from prtbench.api.errors import InvalidInputError, UnknownNameError
+from prtbench.api.method import METHODS
+from prtbench.scene.registry import get_scene
 from prtbench.tradeoff import measures
+from prtbench.transport.lights import get_light
+from prtbench.transport.raytrace import Tracer
 
 if TYPE_CHECKING:
     from prtbench.scene.model import Scene
@@ -122,7 +127,6 @@ def light_variation(light_changes: str) -> tuple[list[dict[str, str]], list[dict
     ruled_out : list of {"method", "why"}
     restricted : list of {"method", "knob", "value", "why"}
     """
-    from prtbench.api.method import METHODS
 
     excluded = LIGHT_CHANGES[check_light_changes(light_changes)]
     change = {"rotate": "a rotating light", "family": "lights that change family"}.get(light_changes)
@@ -176,17 +180,12 @@ def analyze_scene(scene: "Scene | str", light: "EnvironmentLight | str", *,
     -------
     SceneAnalysis
     """
-    import sys
-
-    from prtbench.transport.lights import get_light
-    from prtbench.transport.raytrace import Tracer
 
     check_light_changes(light_changes)
     if not (isinstance(target, (int, float)) and 0.0 < float(target) < 1.0):
         raise InvalidInputError(f"target lighting error {target!r}; accepted: a number in (0, 1)")
     target = float(target)
     if isinstance(scene, str):
-        from prtbench.scene.model import get_scene
 
         scene = get_scene(scene)
     light = get_light(light) if isinstance(light, str) else light

@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from prtbench.api.errors import InvalidInputError, PrtbenchError
+from prtbench.bench.metrics import METRICS, higher_is_better
 
 #: Cost kind -> (base unit, accepted units and their factor to the base unit).
 COST_UNITS: dict[str, tuple[str, dict[str, float]]] = {
@@ -38,7 +39,6 @@ _FRAGMENT = re.compile(
 
 def metric_names() -> tuple[str, ...]:
     """Every metric key a target may name: each metric of :mod:`prtbench.bench.metrics`, full and masked."""
-    from prtbench.bench.metrics import METRICS
 
     return tuple(key for name in METRICS for key in (name, f"{name}_masked"))
 
@@ -96,7 +96,6 @@ class Constraint:
         lower_bound = self.op in (">=", ">")
         if self.kind == "cost":
             return None if lower_bound else False
-        from prtbench.bench.metrics import higher_is_better
 
         return lower_bound == higher_is_better(self.name)
 

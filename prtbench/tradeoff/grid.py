@@ -1,4 +1,4 @@
-"""Declarative sweep grids: a TOML file or CLI options → validated :class:`~prtbench.bench.reproduction.Cell` s.
+"""Declarative sweep grids: a TOML file or CLI options → validated :class:`~prtbench.bench.reproduction.Job` s.
 
 A sweep file (``sweeps/*.toml``, read with :mod:`tomllib`) has defaults at the top level and
 one ``[[method]]`` table per method::
@@ -39,8 +39,15 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from prtbench.api.config import to_dict
 from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
-from prtbench.bench.reproduction import Cell
+from prtbench.api.method import METHODS
+from prtbench.api.profiles import get_profile
+from prtbench.bench.job import Job
+from prtbench.bench.runner import prepare
+from prtbench.scene.model import VARIANTS
+from prtbench.scene.registry import SCENES
+from prtbench.transport.lights import LIGHTS
 
 #: Keys accepted at the top level of a sweep file.
 TOP_KEYS = ("profile", "scene", "scenes", "light", "lights", "variant", "views", "reference",
@@ -58,20 +65,20 @@ class Sweep:
 
     Attributes
     ----------
-    cells : tuple of Cell
+    cells : tuple of Job
         Every valid cell, in file order (method, scene, light, then grid order).
     profile : str
         The profile the cells were validated for.
     source : str
         Where the grid came from (the file path, or ``command line``).
-    dropped : tuple of (Cell, str)
+    dropped : tuple of (Job, str)
         Combinations that failed validation together, with the one-line reason.
     """
 
-    cells: tuple[Cell, ...]
+    cells: tuple[Job, ...]
     profile: str
     source: str
-    dropped: tuple[tuple[Cell, str], ...] = field(default=())
+    dropped: tuple[tuple[Job, str], ...] = field(default=())
 
 
 def load_sweep(path: str | Path, *, profile: str | None = None) -> Sweep:
@@ -162,7 +169,6 @@ def expand(spec: Mapping[str, Any], *, source: str, profile: str | None = None) 
     Writes nothing; raises a one-line :class:`PrtbenchError` (prefixed with ``source``) for
     any mistake, and when a method has no valid cell.
     """
-    from prtbench.api.profiles import get_profile
 
     where = f"sweep {source}" if source == "command line" else f"sweep file '{source}'"
     _check_keys(spec, TOP_KEYS, where, "top-level key")
@@ -173,8 +179,8 @@ def expand(spec: Mapping[str, Any], *, source: str, profile: str | None = None) 
     if not isinstance(tables, list) or not tables or not all(isinstance(t, Mapping) for t in tables):
         raise InvalidInputError(f"{where}: no [[method]] tables; accepted: one or more "
                                 f"[[method]] tables with name = \"<method>\" and a grid")
-    cells: list[Cell] = []
-    dropped: list[tuple[Cell, str]] = []
+    cells: list[Job] = []
+    dropped: list[tuple[Job, str]] = []
     for number, table in enumerate(tables, 1):
         made, lost = _expand_method(table, defaults, profile, f"{where}, [[method]] #{number}")
         cells += made
@@ -240,9 +246,7 @@ def _knob_values(table: Mapping[str, Any], key: str, where: str) -> dict[str, An
 
 
 def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profile: str,
-                   where: str) -> tuple[list[Cell], list[tuple[Cell, str]]]:
-    from prtbench.api.method import METHODS
-    from prtbench.scene.model import SCENES, VARIANTS
+                   where: str) -> tuple[list[Job], list[tuple[Job, str]]]:
 
     _check_keys(table, METHOD_KEYS, where, "[[method]] key")
     name = _typed(table, "name", str, where)
@@ -295,7 +299,7 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
     combos = list(itertools.product(*grid.values())) if grid else [()]
     for scene, light, combo in itertools.product(scenes, lights, combos):
         overrides = {**fixed, **dict(zip(grid, combo))}
-        cell = Cell(method=name, scene=scene, label=dict(zip(grid, combo)), variant=variant,
+        cell = Job(method=name, scene=scene, label=dict(zip(grid, combo)), variant=variant,
                     light=light, overrides=overrides,
                     scene_params=dict(settings.get("scene_params", {})),
                     reference=settings.get("reference", "path"), views=settings.get("views"))
@@ -305,10 +309,9 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
             dropped.append((cell, str(exc)))
             continue
         # Label and overrides as the config parsed them ("3" on the command line is 3).
-        from prtbench.api.config import to_dict
 
         typed = to_dict(prepared.config)
-        typed_cell = Cell(method=name, scene=scene, label={k: typed[k] for k in grid},
+        typed_cell = Job(method=name, scene=scene, label={k: typed[k] for k in grid},
                           variant=variant, light=light,
                           overrides={k: typed[k] for k in overrides},
                           scene_params=cell.scene_params, reference=cell.reference,
@@ -323,8 +326,6 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
 
 
 def _check_light(light: str, where: str) -> None:
-    from prtbench.transport.lights import LIGHTS
-
     if light in LIGHTS.names() or re.search(r"\.(exr|hdr)$", light, re.IGNORECASE):
         return  # a path is checked (read) by prepare
     raise InvalidInputError(f"{where}: {UnknownNameError('light', light, LIGHTS.names())} "
@@ -337,7 +338,7 @@ _VALIDATED: dict[str, Any] = {}
 _VALIDATED_MAX = 1024
 
 
-def prepare_cell(cell: Cell, *, profile: str, results_path: Path | None = None,
+def prepare_cell(cell: Job, *, profile: str, results_path: Path | None = None,
                  store_results: bool = False, reuse: bool = False):
     """:func:`prtbench.bench.runner.prepare` of ``cell`` in ``profile`` (no images; rows only if
     ``store_results``, which also checks the store at ``results_path``). Writes nothing.
@@ -345,16 +346,11 @@ def prepare_cell(cell: Cell, *, profile: str, results_path: Path | None = None,
     ``reuse``: return the run prepared by an earlier ``reuse`` call for the same arguments
     (for validation only; a cell is always measured from a fresh ``prepare``).
     """
-    from prtbench.bench.runner import RunRequest, prepare
 
     memo = repr((cell, profile, results_path, store_results)) if reuse else None
     if memo is not None and memo in _VALIDATED:
         return _VALIDATED[memo]
-    prepared = prepare(RunRequest(
-        method=cell.method, scene=cell.scene, variant=cell.variant, light=cell.light,
-        views=cell.views, profile=profile, reference=cell.reference,
-        overrides=dict(cell.overrides), scene_params=dict(cell.scene_params), out_dir=None,
-        results_path=results_path, store_results=store_results, write_images=False))
+    prepared = prepare(cell, profile=profile, results_path=results_path, store=store_results)
     if memo is not None:
         if len(_VALIDATED) >= _VALIDATED_MAX:
             _VALIDATED.clear()

@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from prtbench.render.reference import render_reference
 from prtbench.transport import sh
 from prtbench.transport.lights import LUMINANCE_WEIGHTS
+from prtbench.transport.ray_pattern import RayPattern, tangent_frames
 from prtbench.transport.raytrace import Tracer, offset_origins
-from prtbench.transport.transfer import RayPattern, compute_transfer, tangent_frames
+from prtbench.transport.transfer import compute_transfer
 
 if TYPE_CHECKING:
     from prtbench.scene.model import Scene
@@ -341,7 +343,6 @@ def interreflection(scene: "Scene", light: "EnvironmentLight", *, width: int = 1
     so the ratio of sums equals the ratio of means over covered pixels. A scene without views
     gives ``indirect_fraction`` None and a ``why``.
     """
-    from prtbench.render.reference import render_reference
 
     if len(scene.trajectory) == 0:
         return {"indirect_fraction": None, "why": "scene has no views"}

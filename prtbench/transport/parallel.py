@@ -18,7 +18,10 @@ tracing threads for the (small) products and keep spinning after them.
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import os
+import platform
 import sys
 import threading
 from collections import deque
@@ -83,8 +86,6 @@ def in_worker() -> bool:
 @lru_cache(maxsize=1)
 def _openblas_threads() -> tuple[Callable[[], int], Callable[[int], None]] | None:
     """(get, set) of the thread count of numpy's bundled OpenBLAS, or None if not found."""
-    import ctypes
-    import glob
 
     libs = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
     for path in glob.glob(os.path.join(libs, "libscipy_openblas*.so*")):
@@ -211,8 +212,6 @@ def keep_freed_memory() -> bool:
     freed, up to 32 MiB (mmap) and 64 MiB (trim); this pins them there from the start, for
     every thread's arena. Returns whether it applied (glibc only; a no-op elsewhere).
     """
-    import ctypes
-    import platform
 
     if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
         return False

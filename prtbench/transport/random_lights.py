@@ -1,6 +1,6 @@
 """Seeded procedural environments for training on many lights.
 
-Learnt transport (``neural-wavelet``) generalises to a held-out light only as far as its
+Learnt transport (the neural wavelet method) generalises to a held-out light only as far as its
 training lights span light space: Raghavan et al. 2023 train on about 1000 HDR maps, each at
 three rotations, where prtbench ships eight HDRIs and three analytic lights. A random
 environment here is the analytic ``sky``/``sun`` recipe with every parameter drawn:
@@ -24,13 +24,8 @@ import math
 
 import numpy as np
 
-from prtbench.transport.lights import (
-    EnvironmentLight,
-    _add_sun,
-    _grid_directions,
-    _smoothstep,
-    _sun_direction,
-)
+from prtbench.transport.lights import EnvironmentLight
+from prtbench.transport.procedural import add_sun, grid_directions, smoothstep, sun_direction
 
 #: Rows of a random environment's lat-long map (texel ≈ 0.7°, finer than the smallest source).
 RANDOM_HEIGHT = 256
@@ -66,7 +61,7 @@ def random_environment(index: int, *, seed: int = 0) -> EnvironmentLight:
     if int(index) != index or index < 0:
         raise ValueError(f"index={index!r}; accepted: integers >= 0")
     rng = np.random.default_rng([int(seed), int(index), 0x524C])  # stream tag "RL"
-    dirs = _grid_directions(RANDOM_HEIGHT)
+    dirs = grid_directions(RANDOM_HEIGHT)
     y = dirs[..., 1]
     zenith = _log_uniform(rng, 0.05, 1.0) * _colour(rng, 0.6)
     horizon = _log_uniform(rng, 0.05, 1.0) * _colour(rng, 0.6)
@@ -74,17 +69,17 @@ def random_environment(index: int, *, seed: int = 0) -> EnvironmentLight:
     blend = ((1.0 - np.clip(y, 0.0, 1.0)) ** rng.uniform(1.0, 6.0))[..., None]
     upper = zenith * (1.0 - blend) + horizon * blend
     softness = math.radians(rng.uniform(1.0, 10.0))
-    above = _smoothstep(-softness, softness, np.arcsin(np.clip(y, -1.0, 1.0)))[..., None]
+    above = smoothstep(-softness, softness, np.arcsin(np.clip(y, -1.0, 1.0)))[..., None]
     image = upper * above + ground * (1.0 - above)
     scale = float(np.mean(zenith + horizon))
     for _ in range(int(rng.integers(1, 4))):
-        direction = _sun_direction(rng.uniform(*SOURCE_ELEVATION_DEG), rng.uniform(0.0, 360.0))
+        direction = sun_direction(rng.uniform(*SOURCE_ELEVATION_DEG), rng.uniform(0.0, 360.0))
         colour = _warm_to_cool(rng)
         cos_gamma = np.clip(dirs @ direction, -1.0, 1.0)
         glow = rng.uniform(0.0, 0.5) * scale * np.exp((cos_gamma - 1.0)
                                                       / _log_uniform(rng, 0.005, 0.2))
         image = image + glow[..., None] * colour
-        _add_sun(image, dirs, direction, _log_uniform(rng, *SOURCE_RADIUS_DEG),
+        add_sun(image, dirs, direction, _log_uniform(rng, *SOURCE_RADIUS_DEG),
                  _log_uniform(rng, *SOURCE_IRRADIANCE), colour)
     name = f"random{RANDOM_VERSION}-{int(seed)}-{int(index)}"
     return EnvironmentLight(name, image.astype(np.float32), source=f"procedural:{name}")

@@ -17,7 +17,7 @@ adjacent triangles cannot slip between them (no light leaks through mesh seams).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -269,3 +269,22 @@ class Tracer:
         for _ in map_chunks(trace, chunks, threads=threads):
             pass
         return Hits(t, face, u, v)
+
+
+def geometry_mask(scene: Scene, view, width: int, height: int) -> np.ndarray:
+    """(H, W) bool: pixels whose centre ray hits geometry (the masked metrics' support)."""
+    tracer = _tracer_for(scene)
+    origins, dirs = view.primary_rays(width, height)
+    hits = tracer.first_hit(origins.reshape(-1, 3), dirs.reshape(-1, 3))
+    return (hits.face >= 0).reshape(height, width)
+
+
+_TRACERS: dict[str, Any] = {}
+
+
+def _tracer_for(scene: Scene) -> "Tracer":
+    key = scene.content_hash()
+    if key not in _TRACERS:
+        _TRACERS.clear()  # one scene at a time keeps memory bounded on big scenes
+        _TRACERS[key] = Tracer.from_scene(scene)
+    return _TRACERS[key]

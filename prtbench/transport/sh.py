@@ -25,6 +25,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from prtbench.api.cache import cached_arrays
 from prtbench.api.errors import InvalidInputError
 
 MAX_DENSE_TRIPLE_BANDS = 8
@@ -304,7 +305,6 @@ def triple_product_sparse(bands: int) -> tuple[np.ndarray, np.ndarray]:
     values : ndarray, shape (K,), float64
     """
     bands = _check_bands(bands, high=MAX_DENSE_TRIPLE_BANDS)
-    from prtbench.api.cache import cached_arrays
 
     def compute() -> dict[str, np.ndarray]:
         gamma = _triple_dense(bands)

@@ -20,36 +20,35 @@ point, no trigonometry per ray). Both run in float32 (the sums in blocks of 256 
 float64: ~2e-6 relative error at any M, see :func:`_local_sh_tables`). Chunks of points (rays,
 trace, SH sums) run on the precompute threads of :mod:`prtbench.transport.parallel` (``PRTBENCH_THREADS``,
 default all cores): embree releases the GIL, and since a chunk's rays depend only on its points
-and the chunks only on the point and ray counts (:func:`_chunks`), every thread count gives the
+and the chunks only on the point and ray counts (:func:`point_chunks`), every thread count gives the
 same bits. :func:`compute_transfer_with_stderr` evaluates SH per ray instead (it needs every
 sample's square); both give the same transfer up to rounding.
 
-Interreflected transfer (Sloan's bounces) is in :func:`compute_bounce_transfer`.
+Interreflected transfer (Sloan's bounces) is in :mod:`prtbench.transport.bounce_transfer`; the
+ray pattern and the SH rotation in :mod:`prtbench.transport.ray_pattern`.
 """
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
-from collections.abc import Iterator
-from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
+from tqdm import tqdm
 
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
 from prtbench.transport.parallel import (
     Scratch,
-    _openblas_threads,  # noqa: F401  (re-exported for users)
     map_chunks,
     parallel_chunks,
     repeat_rows,
+    single_threaded_blas,
 )
-from prtbench.transport.parallel import single_threaded_blas as _single_threaded_blas
+from prtbench.transport.ray_pattern import RayPattern, ShRotation
 from prtbench.transport.raytrace import Tracer, offset_origins
-from prtbench.transport.sh import eval_sh, eval_sh_coefficient_major, sphere_quadrature
+from prtbench.transport.sh import eval_sh, eval_sh_coefficient_major
 
 if TYPE_CHECKING:
     from prtbench.scene.model import Scene
@@ -68,97 +67,14 @@ MAX_RAYS_PER_CHUNK = 1 << 18
 #: cores: the rotation 0.9 ms per chunk instead of 1.8, and the tables' wait gone).
 LEAD_CHUNK_FRACTION = 0.5
 
-#: Distinct randomly shifted direction patterns (SH tables are evaluated once per pattern).
-N_PATTERNS = 16
-
 #: Scratch budget (bytes) of one SH evaluation block.
 _SCRATCH_BYTES = 32 << 20
 
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
-
-
-# --- directions ---------------------------------------------------------------------------------
-
-def cosine_hemisphere(u: np.ndarray) -> np.ndarray:
-    """Malley's method: unit-square points (M, 2) -> cosine-weighted local directions (M, 3), +Z up."""
-    r = np.sqrt(u[:, 0])
-    phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u[:, 0], 0.0))],
-                    axis=1)
-
-
-def fibonacci_square(m: int, *, shift: np.ndarray = np.zeros(2)) -> np.ndarray:
-    """Fibonacci lattice ((j + ½)/m, frac(j/φ)) in [0, 1)², toroidally shifted: (m, 2)."""
-    j = np.arange(m, dtype=np.float64)
-    u = np.stack([(j + 0.5) / m, np.mod(j * _GOLDEN, 1.0)], axis=1)
-    return np.mod(u + np.asarray(shift, dtype=np.float64), 1.0)
-
-
-def tangent_frames(normals: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Right-handed frames (t1, t2, n) about unit ``normals`` (N, 3), spun by ``angles`` (N,).
-
-    Returns (N, 3, 3) float64 whose rows are t1, t2, n (local -> world is ``local @ frame``).
-    """
-    n = normals
-    sign = np.where(n[:, 2] >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + n[:, 2])
-    b = n[:, 0] * n[:, 1] * a
-    t1 = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=1)
-    t2 = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
-    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    return np.stack([c * t1 + s * t2, c * t2 - s * t1, n], axis=1)
-
-
-class RayPattern:
-    """Seeded per-point cosine-weighted ray directions (see the module docstring).
-
-    Point i uses pattern ``i % n_patterns`` (each pattern is independently, uniformly shifted,
-    so every point's estimate is unbiased) spun by its own random angle about the normal.
-
-    Parameters
-    ----------
-    n_points, rays_per_point, seed : int
-    """
-
-    def __init__(self, n_points: int, rays_per_point: int, seed: int):
-        rng = np.random.default_rng([int(seed), 0x5052_5442])  # stream tag: "PRTB"
-        self.rays_per_point = rays_per_point
-        self.n_patterns = N_PATTERNS
-        shifts = rng.random((self.n_patterns, 2))
-        # All patterns in one pass: the same element-wise operations as
-        # fibonacci_square(m, shift=s) for each shift, so the same values, in a tenth the time.
-        shifted = np.mod(fibonacci_square(rays_per_point)[None] + shifts[:, None, :], 1.0)
-        #: (P, M, 3) float64 local directions of each pattern.
-        self.local = cosine_hemisphere(shifted.reshape(-1, 2)).reshape(self.n_patterns,
-                                                                      rays_per_point, 3)
-        self.angle_of_point = rng.random(n_points) * 2.0 * np.pi
-
-    def frames(self, normals: np.ndarray, sl: slice) -> np.ndarray:
-        """(n, 3, 3) local->world frames (rows t1, t2, n) of the points in ``sl``."""
-        return tangent_frames(normals, self.angle_of_point[sl])
-
-    def groups(self, sl: slice) -> Iterator[tuple[int, slice]]:
-        """(pattern, rows of the chunk ``sl`` using it) pairs; rows are strided slices."""
-        for k in range(min(self.n_patterns, sl.stop - sl.start)):
-            yield (sl.start + k) % self.n_patterns, slice(k, None, self.n_patterns)
-
-    def world_directions(self, frames: np.ndarray, sl: slice, *,
-                         out: np.ndarray | None = None) -> np.ndarray:
-        """(n, M, 3) float32 world directions of the points in ``sl`` with ``frames`` (n, 3, 3).
-
-        ``out``, if given, is a C-contiguous (n, M, 3) float32 array to write them into.
-        """
-        if out is None:
-            out = np.empty((len(frames), self.rays_per_point, 3), dtype=np.float32)
-        f32 = frames.astype(np.float32)
-        for k, rows in self.groups(sl):
-            np.matmul(self.local[k].astype(np.float32)[None], f32[rows], out=out[rows])
-        return out
 
 
 # --- inputs -------------------------------------------------------------------------------------
 
-def _check_inputs(points: np.ndarray, normals: np.ndarray, bands: int,
+def check_inputs(points: np.ndarray, normals: np.ndarray, bands: int,
                   rays_per_point: int) -> tuple[np.ndarray, np.ndarray]:
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3) if np.size(points) else np.zeros((0, 3))
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3) if np.size(normals) else np.zeros((0, 3))
@@ -178,7 +94,7 @@ def _check_inputs(points: np.ndarray, normals: np.ndarray, bands: int,
     return p, n / length[:, None]
 
 
-def _chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> list[slice]:
+def point_chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> list[slice]:
     """Consecutive point slices: ``chunk_points`` each, or by default ~:data:`MAX_RAYS_PER_CHUNK`
     rays each after a shorter first one (:data:`LEAD_CHUNK_FRACTION`; one chunk if all fit).
 
@@ -196,126 +112,13 @@ def _chunks(n_points: int, rays_per_point: int, chunk_points: int | None) -> lis
                                for s in range(lead, n_points, step)]
 
 
-def _progress(total: int, desc: str, enabled: bool):
-    from tqdm import tqdm
-
+def progress_bar(total: int, desc: str, enabled: bool):
     return tqdm(total=total, desc=desc, unit="pt", file=sys.stderr, disable=not enabled,
                 dynamic_ncols=True)
 
 
 # --- shadowed transfer --------------------------------------------------------------------------
 
-def _rotation_x(degrees: float) -> np.ndarray:
-    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-class ShRotation:
-    """Rotate SH coefficient vectors by per-point rotations (ZYZ Euler angles).
-
-    For a rotation R, the function ω ↦ Σ_j c_j Y_j(Rᵀω) has coefficients D(R)·c. With
-    R = Rz(a)·Ry(b)·Rz(c) and Ry(b) = Rx(−90°)·Rz(b)·Rx(90°), D(R) is three cheap z-rotations
-    (cos/sin mixing of ±m pairs) and two constant band-diagonal matrices computed once by exact
-    quadrature, so rotating costs O(n³) per point with no per-point SH evaluation.
-
-    The work runs coefficient-major, on (n², N) arrays (:meth:`rotate_columns`): a band's
-    ±m rows are then contiguous runs of N values, so each of the per-band numpy operations
-    streams memory instead of striding across it (measured 1.3–1.7× faster than point-major
-    for 256–4096 points). The band matrices are applied as ``(cᵀ @ Bᵀ)ᵀ``, the same BLAS
-    product as point-major ``c @ Bᵀ``, so the results are bit for bit those of the point-major
-    layout this replaced. Use :meth:`for_bands` to share the constant matrices between calls.
-    """
-
-    def __init__(self, bands: int):
-        self.bands = bands
-        dirs, weights = sphere_quadrature(2 * (bands - 1))
-        y = eval_sh(dirs, bands) * weights[:, None]
-        # D_ij = ∫ Y_i(ω) Y_j(Rᵀω) dω, exact: the integrand has degree <= 2(n-1).
-        d_minus = y.T @ eval_sh(dirs @ _rotation_x(-90.0), bands)
-        d_minus.flags.writeable = False  # constants, shared between threads by for_bands
-        self.x_minus = [d_minus[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] for l in range(bands)]
-        self.x_plus = [block.T for block in self.x_minus]  # D(R⁻¹) = D(R)ᵀ
-        # float32 copies for float32 coefficients (mixed products would run in float64).
-        self._blocks32 = ([b.astype(np.float32) for b in self.x_plus],
-                          [b.astype(np.float32) for b in self.x_minus])
-
-    @staticmethod
-    def for_bands(bands: int) -> "ShRotation":
-        """The rotation of ``bands`` bands, built once per process (its matrices are constants)."""
-        return _rotation_for_bands(int(bands))
-
-    def _z(self, c: np.ndarray, angle: np.ndarray) -> None:
-        if self.bands < 2:
-            return
-        # e^{imγ} for m = 1 … n−1 by repeated products: two trig calls per point, not n².
-        powers = np.cumprod(np.repeat(np.exp(1j * angle)[None, :], self.bands - 1, axis=0), axis=0)
-        cos = np.ascontiguousarray(powers.real, dtype=c.dtype)
-        sin = np.ascontiguousarray(powers.imag, dtype=c.dtype)
-        for l in range(1, self.bands):
-            # Band l's m = 1 … l are rows l²+l+1 … l²+2l and their partners −m run from
-            # l²+l−1 down to l²: slices, not gathers (per-point cost of the rotation).
-            centre = l * l + l
-            pos = c[centre + 1:centre + l + 1]
-            neg = c[centre - 1:(centre - l - 1 if centre - l - 1 >= 0 else None):-1]
-            cl, sl = cos[:l], sin[:l]
-            new_pos = pos * cl - neg * sl
-            neg[...] = pos * sl + neg * cl
-            pos[...] = new_pos
-
-    def _x(self, c: np.ndarray, blocks: list[np.ndarray]) -> None:
-        for l, block in enumerate(blocks):
-            if l:
-                rows = c[l * l:(l + 1) ** 2]
-                rows[...] = (rows.T @ block.T).T
-
-    def rotate_columns(self, coeffs_t: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
-        """D(R_p)·c_p in place for coefficients stored coefficient-major.
-
-        Parameters
-        ----------
-        coeffs_t : ndarray, shape (n², N), float64 or float32, C-contiguous
-            Column p holds point p's coefficients; overwritten with the rotated ones. The
-            rotation runs in its precision (angles are computed in float64 either way).
-        world_from_local : ndarray, shape (N, 3, 3)
-
-        Returns
-        -------
-        ndarray, shape (n², N): ``coeffs_t`` itself.
-        """
-        if coeffs_t.dtype == np.float32 and coeffs_t.shape[1] == 1:
-            # One column would make the band products BLAS gemv calls, whose float32 sums
-            # round differently from gemm's: rotate it as two equal columns instead.
-            pair = np.repeat(coeffs_t, 2, axis=1)
-            self.rotate_columns(pair, np.repeat(world_from_local, 2, axis=0))
-            coeffs_t[...] = pair[:, :1]
-            return coeffs_t
-        r = world_from_local
-        b = np.arccos(np.clip(r[:, 2, 2], -1.0, 1.0))
-        sin_b = np.hypot(r[:, 0, 2], r[:, 1, 2])
-        regular = sin_b > 1e-9
-        a = np.where(regular, np.arctan2(r[:, 1, 2], r[:, 0, 2]),
-                     np.where(r[:, 2, 2] > 0, np.arctan2(r[:, 1, 0], r[:, 0, 0]),
-                              np.arctan2(-r[:, 1, 0], r[:, 1, 1])))
-        c_ang = np.where(regular, np.arctan2(r[:, 2, 1], -r[:, 2, 0]), 0.0)
-        x_plus, x_minus = (self._blocks32 if coeffs_t.dtype == np.float32
-                           else (self.x_plus, self.x_minus))
-        self._z(coeffs_t, c_ang)
-        self._x(coeffs_t, x_plus)
-        self._z(coeffs_t, b)
-        self._x(coeffs_t, x_minus)
-        self._z(coeffs_t, a)
-        return coeffs_t
-
-    def __call__(self, coeffs: np.ndarray, world_from_local: np.ndarray) -> np.ndarray:
-        """D(R_p)·c_p for coefficients (N, n²) and rotations (N, 3, 3); returns a new array."""
-        out = np.array(np.asarray(coeffs).T, dtype=np.float64, order="C")  # always a copy
-        return np.ascontiguousarray(self.rotate_columns(out, world_from_local).T)
-
-
-_rotation_for_bands = lru_cache(maxsize=16)(ShRotation)
-
-
-#: Rays per float32 partial sum in :func:`_project` (their float64 total bounds the rounding).
 SUM_BLOCK = 256
 
 
@@ -480,14 +283,14 @@ def _transfer_key(kind: str, scene: "Scene", points, normals, bands, rays_per_po
 
 def _compute(scene, points, normals, *, bands, rays_per_point, seed, chunk_points, progress,
              use_cache, tracer, with_stderr, visibility=True) -> dict[str, np.ndarray]:
-    p, n = _check_inputs(points, normals, bands, rays_per_point)
+    p, n = check_inputs(points, normals, bands, rays_per_point)
     kind = "transfer-stderr" if with_stderr else "transfer"
     visibility = bool(visibility)
 
     def compute() -> dict[str, np.ndarray]:
         tr = tracer if tracer is not None else Tracer.from_scene(scene)
-        chunks = _chunks(len(p), rays_per_point, chunk_points)
-        with _progress(len(p), f"transfer {scene.name}", progress) as bar, _single_threaded_blas():
+        chunks = point_chunks(len(p), rays_per_point, chunk_points)
+        with progress_bar(len(p), f"transfer {scene.name}", progress) as bar, single_threaded_blas():
             t, e = _transfer_chunks(tr, p, n, bands=bands, rays_per_point=rays_per_point,
                                     seed=seed, chunks=chunks, with_stderr=with_stderr, bar=bar,
                                     visibility=visibility)
@@ -561,212 +364,3 @@ def compute_transfer_with_stderr(scene: "Scene", points: np.ndarray, normals: np
                    chunk_points=chunk_points, progress=progress, use_cache=use_cache,
                    tracer=tracer, with_stderr=True)
     return out["transfer"], out["stderr"]
-
-
-# --- interreflected transfer (Sloan et al. 2002, §5) ----------------------------------------------
-
-#: Keep the per-chunk gather matrices between bounces when they fit in this many bytes;
-#: otherwise the same (seeded) rays are traced again for every bounce.
-_GATHER_CACHE_BYTES = 256 << 20
-
-
-class _Albedo:
-    """Diffuse albedo kd (RGB) at ray hits: per-object constants or textures sampled at UVs."""
-
-    def __init__(self, scene: "Scene", faces: np.ndarray, object_of_face: np.ndarray):
-        from prtbench.scene.model import Texture
-
-        self.faces = faces
-        self.object_of_face = object_of_face
-        self.constant = np.zeros((len(scene.objects), 3))
-        self.textures: dict[int, Texture] = {}
-        uvs = []
-        for i, obj in enumerate(scene.objects):
-            kd, mesh = obj.material.kd, obj.mesh
-            if isinstance(kd, Texture):
-                if mesh.uvs is None:
-                    raise InvalidInputError(
-                        f"object '{obj.name}' has a textured kd but no uvs; accepted: a mesh "
-                        "with uvs, or a constant kd")
-                self.textures[i] = kd
-            else:
-                self.constant[i] = kd
-            uvs.append(mesh.uvs if mesh.uvs is not None else np.zeros((mesh.n_vertices, 2)))
-        self.uvs = np.concatenate(uvs).astype(np.float64) if uvs else np.zeros((0, 2))
-
-    def __call__(self, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
-        """kd (H, 3) at hits on ``face`` (H,) with barycentrics ``bary`` (H, 3)."""
-        obj = self.object_of_face[face]
-        kd = self.constant[obj]
-        for i, tex in self.textures.items():
-            sel = np.flatnonzero(obj == i)
-            if len(sel):
-                uv = np.einsum("hk,hkj->hj", bary[sel], self.uvs[self.faces[face[sel]]])
-                texel = tex.sample(uv)
-                kd[sel] = texel[:, :3] if texel.shape[1] >= 3 else np.repeat(texel[:, :1], 3, axis=1)
-        return kd
-
-
-def _gather_matrices(tracer: Tracer, albedo: _Albedo, points: np.ndarray, normals: np.ndarray,
-                     *, rays_per_point: int, seed: int,
-                     chunks: list[slice]) -> Iterator[tuple[slice, list]]:
-    """Per chunk, the RGB matrices W_c (n_chunk, V) with T^{b+1}_c = W_c · T^b_c.
-
-    W_c[p, v] = 1/M Σ_j [ray j of p hits the front of a triangle at q_j] kd_c(q_j) β_v(q_j),
-    i.e. π/M Σ_j (kd/π) T^b(q_j) with T^b interpolated by the barycentrics β of the hit.
-    """
-    from scipy.sparse import csr_matrix
-
-    m = rays_per_point
-    pattern = RayPattern(len(points), m, seed)
-    origins_all = offset_origins(points, normals, diagonal=tracer.diagonal).astype(np.float32)
-    n_vertices = len(tracer.positions)
-    corners = tracer.positions.astype(np.float64)[tracer.faces]
-    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-
-    def chunk(sl: slice) -> list:
-        frames = pattern.frames(normals[sl], sl)
-        dirs = pattern.world_directions(frames, sl).reshape(-1, 3)
-        hits = tracer.first_hit(np.repeat(origins_all[sl], m, axis=0), dirs)
-        ray = np.flatnonzero(hits.face >= 0)
-        face = hits.face[ray]
-        u, v = hits.u[ray].astype(np.float64), hits.v[ray].astype(np.float64)
-        bary = np.stack([1.0 - u - v, u, v], axis=1)
-        verts = tracer.faces[face]
-        # One-sided surfaces: only a hit on the front (counter-clockwise side) reflects. The
-        # triangle's own normal decides, not the interpolated shading normal: near a ray's
-        # origin vertex that one is ~ the origin's normal and would call grazing hits on the
-        # neighbouring faces of a concave surface back-facing.
-        front = np.einsum("hj,hj->h", dirs[ray].astype(np.float64), face_normals[face]) < 0
-        ray, face, bary, verts = ray[front], face[front], bary[front], verts[front]
-        weight = bary[:, :, None] * albedo(face, bary)[:, None, :] / m  # (H, 3 verts, 3 rgb)
-        # Hits come sorted by ray, hence by row: build CSR directly (duplicates are fine for
-        # products), the three channels sharing one index structure.
-        n_rows = sl.stop - sl.start
-        per_row = np.bincount(ray // m, minlength=n_rows) * 3
-        indptr = np.concatenate([[0], np.cumsum(per_row)]).astype(np.int64)
-        indices = verts.reshape(-1).astype(np.int32)
-        return [csr_matrix((np.ascontiguousarray(weight[:, :, c]).reshape(-1), indices, indptr),
-                           shape=(n_rows, n_vertices)) for c in range(3)]
-
-    # Chunks are built on the precompute threads and come back in chunk order.
-    for mats, sl in zip(map_chunks(chunk, chunks), chunks):  # the pool first: it ends first
-        yield sl, mats
-
-
-class _Gather:
-    """Applies W (all chunks) to vertex transfer, keeping the matrices if they fit in memory."""
-
-    def __init__(self, make, n_rows: int, bar):
-        self.make, self.n_rows, self.bar = make, n_rows, bar
-        self.kept: list | None = None
-
-    def __call__(self, vertex_transfer: np.ndarray) -> np.ndarray:
-        """W · T for vertex transfer (V, n², 1 or 3); returns (n_rows, n², 3) float64."""
-        out = np.zeros((self.n_rows, vertex_transfer.shape[1], 3))
-        record = self.kept is None
-        source = self.make() if record else self.kept
-        kept, size = [], 0
-        for sl, mats in source:
-            for c, mat in enumerate(mats):
-                out[sl, :, c] = mat @ vertex_transfer[:, :, min(c, vertex_transfer.shape[2] - 1)]
-            if record:
-                size += sum(m.data.nbytes for m in mats) + mats[0].indices.nbytes
-                record = size <= _GATHER_CACHE_BYTES
-                kept.append((sl, mats))
-            self.bar.update(sl.stop - sl.start)
-        if record:
-            self.kept = kept
-        return out
-
-
-def compute_bounce_transfer(scene: "Scene", points: np.ndarray, normals: np.ndarray, *,
-                            vertex_transfer: np.ndarray, bounces: int, rays_per_point: int,
-                            seed: int = 0, progress: bool = True, use_cache: bool = True,
-                            tracer: Tracer | None = None) -> np.ndarray:
-    """Interreflected diffuse transfer (Sloan et al. 2002): shadowed transfer plus ``bounces``.
-
-    T^{b+1}(p) = π/M Σ_j [ray j hits the front of a surface at q] (kd(q)/π) · T^b(q), with
-    T^b(q) interpolated from the hit triangle's vertices by barycentrics; hits on the back of a
-    triangle add nothing (surfaces are one-sided; the front is the counter-clockwise side, the
-    side its vertex normals face).
-    T^b for b >= 1 is iterated on all scene vertices, then gathered at ``points`` (when the
-    points are the vertices this is exactly Sloan's per-vertex iteration). Only the diffuse part
-    (kd) of the surfaces hit is propagated; their specular lobe (ks) is ignored. Each iteration
-    re-uses the same rays. Radiance with an SH light L (n², 3): B = kd(p)/π · Σ_i T_i L_i.
-
-    Parameters
-    ----------
-    scene : Scene
-        Geometry and materials (textured kd is sampled at the hit UVs; it needs mesh uvs).
-    points, normals : ndarray, shape (N, 3)
-    vertex_transfer : ndarray, shape (V, n²)
-        Shadowed (zero-bounce) transfer at all vertices of ``scene.merged()``, in that order.
-    bounces : int
-        Interreflection bounces (0 returns the shadowed transfer).
-    rays_per_point : int
-        Gather rays per point and per vertex.
-    seed : int
-    progress, use_cache : bool
-    tracer : Tracer, optional
-        Built for ``scene`` with :meth:`Tracer.from_scene`.
-
-    Returns
-    -------
-    ndarray, shape (N, n², 3), float32
-        T^0 + T^1 + … + T^bounces per RGB channel.
-    """
-    p, n = _check_inputs(points, normals, 1, rays_per_point)
-    positions, vertex_normals, faces, object_of_face = scene.merged()
-    vt = np.asarray(vertex_transfer, dtype=np.float64)
-    bands = int(round(math.sqrt(vt.shape[1]))) if vt.ndim == 2 else 0
-    if vt.ndim != 2 or len(vt) != len(positions) or bands * bands != vt.shape[1] or bands < 1:
-        raise InvalidInputError(
-            f"vertex_transfer shape {vt.shape}; accepted: ({len(positions)}, n²), one row per "
-            f"vertex of scene '{scene.name}'")
-    if not np.all(np.isfinite(vt)):
-        raise InvalidInputError("vertex_transfer contains NaN/Inf; accepted: finite values")
-    if int(bounces) != bounces or bounces < 0:
-        raise InvalidInputError(f"bounces={bounces!r}; accepted: integers >= 0")
-    bounces = int(bounces)
-    albedo = _Albedo(scene, faces, object_of_face)  # fails early on textures without uvs
-    at_vertices = (p.shape == positions.shape and np.array_equal(p, positions)
-                   and np.array_equal(np.asarray(normals, np.float64).reshape(-1, 3), vertex_normals))
-
-    def compute() -> dict[str, np.ndarray]:
-        tr = tracer if tracer is not None else Tracer.from_scene(scene)
-        if at_vertices:
-            total = np.repeat(vt[:, :, None], 3, axis=2)
-        else:
-            total = np.repeat(compute_transfer(
-                scene, p, n, bands=bands, rays_per_point=rays_per_point, seed=seed,
-                progress=progress, use_cache=use_cache, tracer=tr)[:, :, None], 3, axis=2)
-        if bounces == 0:
-            return {"transfer": total.astype(np.float32)}
-        vn = vertex_normals.astype(np.float64)
-        length = np.linalg.norm(vn, axis=1, keepdims=True)
-        vn_unit = np.where(length > 0, vn / np.maximum(length, 1e-300), [0.0, 1.0, 0.0])
-        vertex_passes = bounces if at_vertices else bounces - 1
-        n_rows = vertex_passes * len(positions) + (0 if at_vertices else bounces * len(p))
-        with _progress(n_rows, f"bounces {scene.name}", progress) as bar:
-            def gather(pts, nrm):
-                return _Gather(lambda: _gather_matrices(
-                    tr, albedo, pts, nrm, rays_per_point=rays_per_point, seed=seed,
-                    chunks=_chunks(len(pts), rays_per_point, None)), len(pts), bar)
-
-            at_vertex = gather(positions.astype(np.float64), vn_unit)
-            at_point = at_vertex if at_vertices else gather(p, n)
-            previous = vt[:, :, None]  # T^0 is grey: the same for every channel
-            for b in range(1, bounces + 1):
-                if at_vertices:
-                    previous = at_vertex(previous)  # T^b at the vertices, which are the points
-                    total += previous
-                else:
-                    total += at_point(previous)  # T^b at the points from T^(b-1) at vertices
-                    if b < bounces:
-                        previous = at_vertex(previous)
-        return {"transfer": total.astype(np.float32)}
-
-    key = content_key("transfer-bounce", TRANSFER_VERSION, scene.content_hash(), p, n, vt,
-                      bounces, int(rays_per_point), int(seed))
-    return cached_arrays("transfer-bounce", key, compute, use_cache=use_cache)["transfer"]

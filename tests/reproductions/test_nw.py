@@ -44,7 +44,7 @@ def store(tmp_path_factory):
 
 
 def test_far_views_are_a_held_out_trajectory():
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
 
     scene = get_scene("sphere-over-plane", variant="glossy", sphere_segments=16,
                       plane_subdivisions=4)

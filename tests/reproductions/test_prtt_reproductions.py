@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 import methods.texture  # noqa: F401 - registers texture-tp / texture-tpfl
-from prtbench.api.errors import AssetMissingError, InvalidInputError
+from prtbench.api.errors import AssetMissingError
 from prtbench.bench.reproduction import TABLES, run_table
 from prtbench.render.prt_shading import gamma_entries, tpfl_buffer_data
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from prtbench.store.results import load
-from reproductions import _panels, _plots
 from reproductions import figure_3_4 as f34
+from reproductions import plots, shared
 from reproductions import table_3_1 as t31
 from reproductions import table_3_2 as t32
 
@@ -205,8 +205,8 @@ def test_figure_3_4_writes_a_labelled_png_from_stored_runs(tmp_path, monkeypatch
                               progress=False)
     image = imageio.read_png(png)
     # One row of 3 panels (2 methods + reference) of 64×48, magnified 3× (nearest neighbour) to
-    # at least _plots.MIN_PANEL_PX wide, labels above and beside.
-    zoom = -(-_plots.MIN_PANEL_PX // 64)
+    # at least plots.MIN_PANEL_PX wide, labels above and beside.
+    zoom = -(-plots.MIN_PANEL_PX // 64)
     assert image.shape[1] > 3 * 64 * zoom and image.shape[0] > 48 * zoom
     stored = load(results)
     assert sorted(stored["method"]) == ["texture-tpfl", "vertex-tpfl"]
@@ -221,9 +221,9 @@ def test_grid_and_wireframe_overlay_geometry(tmp_path):
     a = np.full((10, 20, 3), 0.5, np.float32)
     b = np.zeros((10, 20, 3), np.float32)
     b[..., 0] = 1.0  # pure red: no label or background pixel has this colour
-    png = _plots.panel_grid(tmp_path / "grid.png", [[a, None], [b, b]], titles=[["x", "y"]])
+    png = plots.panel_grid(tmp_path / "grid.png", [[a, None], [b, b]], titles=[["x", "y"]])
     out = imageio.read_png(png)
-    zoom = -(-_plots.MIN_PANEL_PX // 20)
+    zoom = -(-plots.MIN_PANEL_PX // 20)
     red = (out[..., 0] > 0.99) & (out[..., 1] < 0.01) & (out[..., 2] < 0.01)
     # Two red panels drawn at zoom × their pixel size (± a line of pixels at the axes' edges).
     assert abs(int(red.sum()) - 2 * 10 * 20 * zoom**2) <= 2 * 2 * (10 + 20) * zoom
@@ -232,7 +232,7 @@ def test_grid_and_wireframe_overlay_geometry(tmp_path):
     grey = np.all(np.abs(out - 0.5) < 1.5 / 255, axis=-1)
     assert abs(int(grey.sum()) - 10 * 20 * zoom**2) <= 2 * (10 + 20) * zoom  # the blank cell is white
     # Reproducible bytes: no software version or timestamp text chunk in the PNG.
-    assert png.read_bytes() == _plots.panel_grid(tmp_path / "again.png", [[a, None], [b, b]],
+    assert png.read_bytes() == plots.panel_grid(tmp_path / "again.png", [[a, None], [b, b]],
                                                  titles=[["x", "y"]]).read_bytes()
     data, chunks, at = png.read_bytes(), [], 8
     while at < len(data):
@@ -244,21 +244,21 @@ def test_grid_and_wireframe_overlay_geometry(tmp_path):
     panel = np.full((40, 80, 3), 0.5, np.float32)
     edges = np.zeros((80, 160), np.float32)
     edges[46, :] = 1.0  # one horizontal edge at 2×: half of panel row 23's coverage
-    out = _panels.wireframe_overlay(panel, edges, crop=(0.5, 0.75, 0.25, 0.75), opacity=1.0)
+    out = shared.wireframe_overlay(panel, edges, crop=(0.5, 0.75, 0.25, 0.75), opacity=1.0)
     assert out.shape == panel.shape
-    inside = np.asarray(_panels.WIRE) * 0.5 + 0.5 * 0.5  # half-covered pixels blend half-way
+    inside = np.asarray(shared.WIRE) * 0.5 + 0.5 * 0.5  # half-covered pixels blend half-way
     assert np.allclose(out[23, 21:59], inside)
     assert np.allclose(out[23, :20], 0.5) and np.allclose(out[23, 60:], 0.5)  # outside the box
-    assert np.allclose(out[20, 20:60], _panels.INSET_BORDER)  # the box's outline
+    assert np.allclose(out[20, 20:60], shared.INSET_BORDER)  # the box's outline
     assert np.allclose(out[22, 21:59], 0.5)  # no edge, inside the box: the render unchanged
     with pytest.raises(ValueError):
-        _panels.wireframe_overlay(panel, edges[:, :100], crop=(0.5, 0.75, 0.25, 0.75))
+        shared.wireframe_overlay(panel, edges[:, :100], crop=(0.5, 0.75, 0.25, 0.75))
 
 
 def test_wireframe_edges_of_a_two_triangle_plane():
     scene = get_scene("plane")
     view = scene.trajectory.views[0]
-    edges, geometry = _panels.render_wireframe(scene, view, width=96, height=72)
+    edges, geometry = shared.render_wireframe(scene, view, width=96, height=72)
     assert edges.shape == geometry.shape == (72, 96)
     assert geometry.any()
     # Two triangles: edges are a thin fraction of the covered pixels, and only where covered.

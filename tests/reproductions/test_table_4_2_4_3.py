@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from prtbench.bench.reproduction import Cell, run_table
+from prtbench.bench.job import Job
+from prtbench.bench.reproduction import run_table
 from reproductions import table_4_2, table_4_3
 
 
@@ -95,7 +96,7 @@ def test_table_4_2_end_to_end_on_a_tiny_sweep(monkeypatch, tmp_path):
     # One smoke-sized cell through the real runner and results store; the rest stay empty.
     import methods.learnt.sdf  # noqa: F401 - registers "learnt-sdf"
 
-    cell = Cell(method="learnt-sdf", scene="sdf-rabbit", variant="glossy", views=1,
+    cell = Job(method="learnt-sdf", scene="sdf-rabbit", variant="glossy", views=1,
                 scene_params={"mc_resolution": 96},
                 label={"scene": "sdf-rabbit", "variant": "glossy", "k": 64})
     monkeypatch.setattr(table_4_2.TABLE, "cells", lambda profile: [cell])

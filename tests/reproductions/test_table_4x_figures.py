@@ -32,7 +32,7 @@ def test_figure_4_13_with_and_without_encoding(tmp_path):
 
 def test_white_scene_keeps_geometry_and_drops_albedo():
     from methods.learnt.data import geometry_key
-    from prtbench.scene.model import get_scene
+    from prtbench.scene.registry import get_scene
     from reproductions.figure_4_13 import ALBEDO, white_scene
 
     scene = get_scene("plants", variant="glossy")

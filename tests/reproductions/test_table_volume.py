@@ -8,7 +8,7 @@ import numpy as np
 
 import methods.irradiance_volume.method as iv  # registers "irradiance-volume"
 from prtbench.api.method import METHODS
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from prtbench.transport.raytrace import Tracer
 from reproductions import table_volume as tv
 

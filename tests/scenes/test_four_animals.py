@@ -8,7 +8,7 @@ from scipy.ndimage import binary_dilation
 
 import scenes.four_animals  # noqa: F401  registers the scene where the installed metadata lags
 from prtbench.api.errors import InvalidInputError
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from tests.scenes.test_scenes import _check_rebuilds_from_params, _check_scene, user_assets  # noqa: F401
 
 #: 26 002 + 37 706 + 8 393 + 10 008 vertices of the four animals, the ring and the ground.
@@ -75,8 +75,8 @@ def test_unknown_trajectory_is_one_line_error():
 
 @pytest.mark.assets
 def test_mitsuba_reference_renders_finite_and_lit(user_assets):
-    from prtbench.bench.runner import geometry_mask
     from prtbench.render.reference import render_reference
+    from prtbench.transport.raytrace import geometry_mask
 
     scene = get_scene("four-animals", variant="glossy")
     view, width, height = scene.trajectory.views[0], 48, 36

@@ -8,7 +8,7 @@ import pytest
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
-from prtbench.scene.model import SCENES, get_scene
+from prtbench.scene.registry import SCENES, get_scene
 
 
 def _builders():

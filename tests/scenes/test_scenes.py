@@ -10,7 +10,7 @@ import pytest
 
 from prtbench.api.errors import InvalidInputError, UnknownNameError
 from prtbench.scene.geometry import boundary_loops, weld_vertices
-from prtbench.scene.model import get_scene
+from prtbench.scene.registry import get_scene
 from scenes import primitives
 
 # Triangle-count ranges of the default builds: (low, high) inclusive.

@@ -9,7 +9,8 @@ import pytest
 
 import scenes.sdf_scenes  # noqa: F401 - registers the scenes until the entry points are added
 from prtbench.api.errors import InvalidInputError
-from prtbench.scene.model import get_scene
+from prtbench.render import sdf_gl
+from prtbench.scene.registry import get_scene
 from prtbench.transport import sdf
 
 ANALYTIC = {"sdf-car": "OLD-CAR", "sdf-monster": "MIKE-MONSTER", "sdf-fish": "FISH",
@@ -123,7 +124,7 @@ def test_mitsuba_reference_renders_the_marching_cubes_mesh():
     elapsed = time.perf_counter() - start
     assert elapsed < 60.0
     assert ref.image.shape == (24, 32, 3) and np.all(np.isfinite(ref.image))
-    g = sdf.sdf_gbuffer(gl.create_context(), scene, view, 32, 24)
+    g = sdf_gl.sdf_gbuffer(gl.create_context(), scene, view, 32, 24)
     lit = ref.image.sum(axis=-1) > 0
     assert np.mean(lit == g.mask) > 0.95  # pixel-centre G-buffer vs box-filtered coverage
     assert ref.image[g.mask].mean() > 0.05

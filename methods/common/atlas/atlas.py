@@ -21,6 +21,8 @@ import numpy as np
 from methods.common.atlas import SHADER_DIR
 from methods.common.atlas.shading import ShadingInputs, normal_map_texture
 from prtbench.api.errors import InvalidInputError
+from prtbench.render import gl
+from prtbench.scene.geometry import scene_atlas
 from prtbench.scene.model import Scene
 
 
@@ -77,8 +79,6 @@ class AtlasMesh:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
-        from prtbench.scene.geometry import scene_atlas
-
         try:
             atlases = scene_atlas(scene, resolution=resolution, padding=padding,
                                   per_object=texture_sets)
@@ -133,7 +133,6 @@ class GBuffer:
 
 def render_gbuffer(scene: Scene, atlas: AtlasMesh, shading: ShadingInputs) -> GBuffer:
     """Rasterise the atlas mesh in texel space (PRTT Algorithm 2, conservative coverage)."""
-    from prtbench.render import gl
 
     positions, normals, _, _ = scene.merged()
     src = atlas.vertex_source

@@ -56,11 +56,16 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
+from prtbench.api import config
 from prtbench.api.cache import content_key
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
 from prtbench.scene.files.materials import DEFAULT_KD, GLOSSY_DEFAULT, phong_exponent
+from prtbench.scene.files.reader import load, objects_of, sidecars
 from prtbench.scene.files.report import ImportReport
+from prtbench.scene.files.views import file_views, ground, orbit
+from prtbench.scene.model import VARIANTS, Scene, Trajectory, objects_bounds
+from prtbench.scene.params import check_extent, check_params
 
 __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
            "build_file_scene", "check_triangles", "is_scene_path", "phong_exponent",
@@ -92,14 +97,13 @@ def check_triangles(label: str, n_triangles: int, *, budget: int | None = None) 
     The same estimate as the built-in scenes' geometry parameters
     (:data:`prtbench.scene.params.BYTES_PER_TRIANGLE` bytes per triangle through a run, against
     :func:`prtbench.api.config.memory_budget`), so the limit is stated in triangles; methods with
-    their own limits (``sloan-matrix``'s ``max_bytes``) check them in ``validate``.
+    their own limits (a per-vertex matrix's ``max_bytes``) check them in ``validate``.
 
     Raises
     ------
     InvalidInputError
         One line naming the file, its triangles and the largest accepted count.
     """
-    from prtbench.api import config
 
     budget = config.memory_budget() if budget is None else budget
     config.check_memory(f"{label} with {n_triangles} triangles",
@@ -154,10 +158,6 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
         or a bounds diagonal after ``scale`` outside what float32 ray offsets allow
         (:func:`prtbench.scene.params.check_extent`, with a ``scale=`` hint).
     """
-    from prtbench.scene.files.reader import load, objects_of, sidecars
-    from prtbench.scene.files.views import file_views, ground, orbit
-    from prtbench.scene.model import VARIANTS, Scene, Trajectory, objects_bounds
-    from prtbench.scene.params import check_extent, check_params
 
     files = scene_files(path)
     label = f"scene file '{path}'"

@@ -8,6 +8,7 @@ import numpy as np
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.files.report import ImportReport
+from prtbench.scene.model import Material, Texture
 
 #: Materials of files without any (DESIGN §4 values).
 DEFAULT_KD = 0.7
@@ -20,7 +21,6 @@ def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
 
 def _image(img, name: str, *, srgb: bool, factor=None):
     """A :class:`Texture` from a PIL image (flipped so row 0 is v = 0), or None."""
-    from prtbench.scene.model import Texture
 
     if img is None:
         return None
@@ -46,8 +46,6 @@ def _rgb(value, default: float) -> tuple[float, float, float]:
 def material_of(geom, variant: str, has_uv: bool, report: ImportReport, node: str):
     from trimesh.visual.material import PBRMaterial, SimpleMaterial
 
-    from prtbench.scene.model import Material
-
     visual = geom.visual
     mat = getattr(visual, "material", None)
     glossy = variant == "glossy"
@@ -55,7 +53,7 @@ def material_of(geom, variant: str, has_uv: bool, report: ImportReport, node: st
         return _pbr(mat, glossy, has_uv, report, node)
     if isinstance(mat, SimpleMaterial):
         return _mtl(mat, glossy, has_uv, report, node)
-    if getattr(visual, "kind", None) in ("vertex", "face"):
+    if getattr(visual, "kind", None) not in (None, "texture"):  # per-vertex or per-face colours
         report.warnings.append(f"{node}: vertex/face colours ignored (default material)")
     if glossy:
         g = GLOSSY_DEFAULT
@@ -65,8 +63,6 @@ def material_of(geom, variant: str, has_uv: bool, report: ImportReport, node: st
 
 
 def _mtl(mat, glossy: bool, has_uv: bool, report: ImportReport, node: str):
-    from prtbench.scene.model import Material
-
     extra = getattr(mat, "kwargs", {}) or {}
     kd = _rgb(extra["kd"], 1.0) if "kd" in extra else _rgb(mat.diffuse, 1.0)
     ks = _rgb(extra["ks"], 0.0) if "ks" in extra else (0.0, 0.0, 0.0)
@@ -93,8 +89,6 @@ def phong_exponent(roughness: float) -> float:
 
 
 def _pbr(mat, glossy: bool, has_uv: bool, report: ImportReport, node: str):
-    from prtbench.scene.model import Material
-
     name = str(mat.name or node)
     base = np.asarray(_rgb(mat.baseColorFactor, 1.0))
     metallic = 1.0 if mat.metallicFactor is None else float(np.clip(mat.metallicFactor, 0, 1))

@@ -9,12 +9,16 @@ import struct
 import warnings
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote
 
 import numpy as np
+from PIL import Image
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.files.materials import material_of
 from prtbench.scene.files.report import ImportReport
+from prtbench.scene.geometry import degenerate_faces, remove_duplicate_faces
+from prtbench.scene.model import SceneObject, TriangleMesh
 
 
 def import_basis(values: dict[str, Any]) -> np.ndarray:
@@ -68,7 +72,6 @@ def _check_image(path: Path | bytes, label: str, name: str | None = None) -> Non
 
     trimesh would silently drop the texture and the scene would render untextured.
     """
-    from PIL import Image
 
     name = name or (path.name if isinstance(path, Path) else "embedded image")
     try:
@@ -133,8 +136,6 @@ def _check_embedded_images(tree: Any, binary: bytes | None, label: str) -> None:
 
 
 def _unquote(uri: str) -> str:
-    from urllib.parse import unquote
-
     return unquote(uri)
 
 
@@ -168,8 +169,6 @@ def load(file: Path, label: str):
 def objects_of(tm_scene, values: dict[str, Any], variant: str, label: str,
              report: ImportReport) -> list:
     import trimesh
-
-    from prtbench.scene.model import SceneObject, TriangleMesh
 
     basis = import_basis(values)
     objects = []
@@ -209,7 +208,6 @@ def objects_of(tm_scene, values: dict[str, Any], variant: str, label: str,
 
 def _repaired(positions, faces, normals, uvs, world, report):
     """World-space, repaired arrays ``(positions, faces, normals, uvs)`` or None if empty."""
-    from prtbench.scene.geometry import degenerate_faces, remove_duplicate_faces
 
     linear = world[:3, :3]
     p = positions @ linear.T + world[:3, 3]

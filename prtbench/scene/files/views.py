@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 
 from prtbench.scene.files.reader import import_basis
+from prtbench.scene.geometry import grid_plane
+from prtbench.scene.model import Material, SceneObject, Trajectory, View
 
 #: Albedo of the ``ground=true`` plane.
 GROUND_KD = 0.6
@@ -16,9 +18,6 @@ ORBIT_ELEVATION_DEG, ORBIT_FOV_DEG, ORBIT_VIEWS = 25.0, 45.0, 30
 
 
 def ground(lo: np.ndarray, hi: np.ndarray, variant: str):
-    from prtbench.scene.geometry import grid_plane
-    from prtbench.scene.model import Material, SceneObject
-
     extent = hi - lo
     size = 2.0 * float(max(extent[0], extent[2], 0.5 * extent[1]))
     center = ((lo[0] + hi[0]) / 2, float(lo[1]), (lo[2] + hi[2]) / 2)
@@ -28,7 +27,6 @@ def ground(lo: np.ndarray, hi: np.ndarray, variant: str):
 
 def file_views(tm_scene, values: dict[str, Any]) -> list:
     """The file's perspective camera (trimesh reads the first one), in our world frame."""
-    from prtbench.scene.model import View
 
     try:
         if not tm_scene.has_camera:
@@ -50,7 +48,6 @@ def file_views(tm_scene, values: dict[str, Any]) -> list:
 
 def orbit(lo: np.ndarray, hi: np.ndarray) -> list:
     """30 views on a circle above the bounds' centre, framing their bounding sphere."""
-    from prtbench.scene.model import Trajectory
 
     center = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo)) / 2

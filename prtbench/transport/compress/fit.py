@@ -23,9 +23,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from tqdm import tqdm
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.transport.compress.cpca import Cpca, check_request
+from prtbench.transport.parallel import single_threaded_blas
 
 #: Scratch bytes of one chunk of the reassignment's (chunk × K·n′) projections.
 _SCRATCH_BYTES = 64 << 20
@@ -247,7 +249,6 @@ def fit_cpca(signals: np.ndarray, *, clusters: int, pca_vectors: int, adaptive: 
     n_signals, d = x.shape
     check_request(n_signals=n_signals, dimension=d, clusters=clusters, pca_vectors=pca_vectors,
                   max_bytes=max_bytes, what=what)
-    from prtbench.transport.parallel import single_threaded_blas
 
     # The products are many and mid-sized: OpenBLAS's helper threads mostly contend (a 20×
     # slowdown measured on the 2-core machine under load).
@@ -308,7 +309,6 @@ def _fit(x: np.ndarray, *, clusters: int, pca_vectors: int, adaptive: bool, max_
 def _bar(total: int, desc: str, enabled: bool):
     if not enabled:
         return None
-    from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, leave=False)
 

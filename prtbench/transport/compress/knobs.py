@@ -22,6 +22,8 @@ import numpy as np
 
 from prtbench.api.config import knob
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.compress.cpca import Cpca
+from prtbench.transport.compress.fit import fit_cpca
 
 COMPRESS_FORMS = ("none", "pca", "vq", "cpca")
 #: Defaults of the knobs a form uses when they are left unset (None).
@@ -108,7 +110,6 @@ def compress_signals(signals: np.ndarray, form: Form, *, seed: int, what: str = 
     float32 form, the compressed and uncompressed bytes, the fit's wall time. ``spectrum``:
     :func:`prtbench.transport.compress.fit.fit_cpca`'s.
     """
-    from prtbench.transport.compress.fit import fit_cpca
 
     start = time.perf_counter()
     x = np.asarray(signals).reshape(len(signals), -1)
@@ -135,7 +136,6 @@ def is_compressed(arrays: Mapping[str, np.ndarray]) -> bool:
 
 def load_model(arrays: Mapping[str, np.ndarray], *, n_signals: int):
     """The :class:`~prtbench.transport.compress.cpca.Cpca` of an artifact's ``cpca_*`` arrays."""
-    from prtbench.transport.compress.cpca import Cpca
 
     means = np.asarray(arrays[PREFIX + "means"], np.float32)
     clusters, d = means.shape

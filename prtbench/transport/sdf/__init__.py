@@ -7,8 +7,7 @@ bounds and its materials), which continuous methods sphere-trace in NumPy or GLS
 
 Modules: :mod:`.nodes` (the tree, NumPy evaluation, GLSL generation), :mod:`.surface`
 (:class:`SdfSurface`), :mod:`.trace` (NumPy sphere tracing, SDF transfer), :mod:`.mesh`
-(marching cubes, surface samples), :mod:`.gbuffer` (GL programs, G-buffer, GPU occlusion;
-imports moderngl lazily).
+(marching cubes, surface samples), :mod:`prtbench.render.sdf_gl` holds their GL programs, G-buffer and GPU occlusion.
 """
 
 from prtbench.transport.sdf.mesh import (
@@ -55,23 +54,10 @@ from prtbench.transport.sdf.trace import (
     surface_origins,
 )
 
-
-def __getattr__(name: str):
-    # GL helpers on demand, so importing prtbench.transport.sdf does not import moderngl.
-    if name in ("sdf_gbuffer", "SdfGBuffer", "GBufferPass", "load_sdf_program", "bind_camera",
-                "fullscreen_vao", "evaluate_gl", "GlOcclusion"):
-        from prtbench.transport.sdf import gbuffer
-
-        return getattr(gbuffer, name)
-    raise AttributeError(f"module 'prtbench.transport.sdf' has no attribute '{name}'")
-
-
 __all__ = [
     "Box", "Capsule", "Cone", "Cylinder", "Ellipsoid", "Mirror", "Plane", "Rotate", "Round",
     "RoundedBox", "Scale", "SdfNode", "SmoothIntersection", "SmoothSubtraction", "SmoothUnion",
     "Sphere", "Torus", "Translate", "intersection", "rotation_matrix", "subtract", "union",
     "SdfSurface", "as_surface", "MarchResult", "SdfHits", "SdfTracer", "compute_sdf_transfer",
     "first_hit", "march", "occluded", "surface_origins", "CLEARANCE", "marching_cubes_mesh", "sample_sdf_surface", "sdf_grid",
-    "sdf_scene_objects", "split_by_material", "sdf_gbuffer", "SdfGBuffer", "GBufferPass",
-    "load_sdf_program", "bind_camera", "fullscreen_vao", "evaluate_gl", "GlOcclusion",
-]
+    "sdf_scene_objects", "split_by_material"]

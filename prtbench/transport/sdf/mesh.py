@@ -21,7 +21,8 @@ import numpy as np
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.geometry import degenerate_faces, sample_surface
-from prtbench.scene.model import SceneObject, TriangleMesh
+from prtbench.scene.model import Material, SceneObject, TriangleMesh
+from prtbench.transport.sdf.nodes import SdfNode
 from prtbench.transport.sdf.surface import SdfSurface, as_surface
 
 #: Bump when the mesh extraction changes (part of the cache key).
@@ -116,9 +117,6 @@ def sdf_grid(surface: Any, *, resolution: int, narrow_band: bool = True,
 
 
 def _with_bounds(surface: Any, bounds: Any) -> SdfSurface:
-    from prtbench.scene.model import Material
-    from prtbench.transport.sdf.nodes import SdfNode
-
     if isinstance(surface, SdfNode):
         if bounds is None:
             raise InvalidInputError("marching cubes of a bare SdfNode needs bounds=(lo, hi)")

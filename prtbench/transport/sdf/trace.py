@@ -26,16 +26,25 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport import ray_pattern
+from prtbench.transport import transfer as tr
 from prtbench.transport.raytrace import OFFSET_SCALE, offset_origins
 from prtbench.transport.sdf.surface import MAX_STEPS, RELAXATION, SdfSurface, as_surface
+from prtbench.transport.sh import eval_sh
 
 #: Bump when sphere tracing or the SDF transfer estimator changes (part of cache keys).
 SDF_TRANSFER_VERSION = 2  # 2: origins lifted clear of the hit shell (surface_origins)
 
 BACKENDS = ("numpy", "gl")
+#: Sphere-tracing backends other than NumPy: name -> factory ``(surface, *, max_steps,
+#: relaxation)`` of an object with ``occluded(origins, directions)`` and ``release()``. The GL
+#: one (a fragment shader) lives in the render layer, :mod:`prtbench.render.sdf_gl`, and
+#: registers itself when that module is imported (the methods that trace on the GPU import it).
+OCCLUSION_BACKENDS: dict[str, Any] = {}
 
 
 def box_interval(lo: np.ndarray, hi: np.ndarray, origins: np.ndarray, directions: np.ndarray,
@@ -282,12 +291,13 @@ class SdfTracer:
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N,) bool for rays (N, 3) from already offset origins."""
-        if self.backend == "gl":
+        if self.backend != "numpy":
             if self._gl is None:
-                from prtbench.transport.sdf.gbuffer import GlOcclusion
-
-                self._gl = GlOcclusion(self.surface, max_steps=self.max_steps,
-                                       relaxation=self.relaxation)
+                if self.backend not in OCCLUSION_BACKENDS:
+                    raise InvalidInputError(f"SDF tracer backend '{self.backend}' is not loaded; "
+                                            "import prtbench.render.sdf_gl, which provides it")
+                self._gl = OCCLUSION_BACKENDS[self.backend](
+                    self.surface, max_steps=self.max_steps, relaxation=self.relaxation)
             return self._gl.occluded(origins, directions)
         return occluded(self.surface, origins, directions, max_steps=self.max_steps,
                         relaxation=self.relaxation)
@@ -310,9 +320,9 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
     """Shadowed diffuse transfer T_i(p) = ∫ Y_i V max(n·ω, 0) dω with SDF visibility.
 
     The estimator of :func:`prtbench.transport.transfer.compute_transfer`, built from its own pieces:
-    the same seeded :class:`~prtbench.transport.transfer.RayPattern` (cosine-weighted stratified
+    the same seeded :class:`~prtbench.transport.ray_pattern.RayPattern` (cosine-weighted stratified
     directions, per-point spin), the same origin offset, the local-frame SH sum against
-    per-pattern SH tables and the same :class:`~prtbench.transport.transfer.ShRotation` to the world
+    per-pattern SH tables and the same :class:`~prtbench.transport.ray_pattern.ShRotation` to the world
     frame. Only visibility differs: sphere tracing of ``scene.sdf`` inside its bounds. (The
     chunks run on the calling thread: a GL context is current on one thread only.)
 
@@ -332,24 +342,20 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
     -------
     ndarray, shape (N, n²), float32
     """
-    from prtbench.transport import transfer as tr
-    from prtbench.transport.sh import eval_sh
 
     surface = as_surface(scene)
     if backend not in BACKENDS:
         raise InvalidInputError(f"SDF transfer backend '{backend}'; accepted: "
                                 f"{', '.join(BACKENDS)}")
-    p, n = tr._check_inputs(points, normals, bands, rays_per_point)
+    p, n = tr.check_inputs(points, normals, bands, rays_per_point)
     key = content_key("sdf-transfer", tr.TRANSFER_VERSION, SDF_TRANSFER_VERSION, surface.spec(),
                       backend, p, n, int(bands), int(rays_per_point), int(seed),
                       *(() if visibility else ("unshadowed",)))  # shadowed keys unchanged
 
     def compute() -> dict[str, np.ndarray]:
-        from tqdm import tqdm
-
         m = int(rays_per_point)
-        pattern = tr.RayPattern(len(p), m, seed)
-        rotate = tr.ShRotation.for_bands(bands)
+        pattern = ray_pattern.RayPattern(len(p), m, seed)
+        rotate = ray_pattern.ShRotation.for_bands(bands)
         local_sh = [eval_sh(directions, bands) for directions in pattern.local]
         origins_all = surface_origins(surface, p, n)
         transfer = np.zeros((len(p), bands * bands))
@@ -357,7 +363,7 @@ def compute_sdf_transfer(scene: Any, points: np.ndarray, normals: np.ndarray, *,
         try:
             with tqdm(total=len(p), desc=f"sdf transfer {surface.name}", unit="pt",
                       disable=not progress, dynamic_ncols=True) as bar:
-                for sl in tr._chunks(len(p), m, chunk_points):
+                for sl in tr.point_chunks(len(p), m, chunk_points):
                     frames = pattern.frames(n[sl], sl)
                     directions = pattern.world_directions(frames, sl).reshape(-1, 3)
                     if visibility:

@@ -12,7 +12,7 @@ area-element-weighted midpoints, :func:`prtbench.transport.wavelet.cubemap.subsa
 texel's solid angle is folded in, where :mod:`prtbench.transport.wavelet.triple` expects it; then
 Haar-transformed per face and truncated to the ``keep`` largest magnitudes per point.
 
-Ng 2004 tabulates ρ̃ over sampled normals × view directions. ``wavelet-tp`` instead projects
+Ng 2004 tabulates ρ̃ over sampled normals × view directions. The wavelet triple-product method instead projects
 G for each vertex's own (n, r) every frame (the normals are static, so D is projected once), so
 the BRDF carries no direction-binning error and its cost, O(P·6N²·S²) per frame, is inside the
 measured frame time (see :mod:`methods.wavelet.tp`).
@@ -26,7 +26,12 @@ import numpy as np
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.transport.wavelet import haar
-from prtbench.transport.wavelet.cubemap import check_resolution, subsample_pattern
+from prtbench.transport.wavelet.cubemap import (
+    check_resolution,
+    directions_to_texels,
+    subsample_pattern,
+    texel_directions,
+)
 
 #: Texel subsamples (points × 6N²·S²) evaluated at once: bounds a chunk's float32 scratch.
 CHUNK_SAMPLES = 1 << 22
@@ -145,7 +150,6 @@ def project(normals: np.ndarray, *, n: int, keep: int, reflections: np.ndarray |
 
 def direction_bins(dirs: np.ndarray, t: int) -> np.ndarray:
     """Flat texel index (face·t² + row·t + column) of each direction on a 6×t×t cube, (P,)."""
-    from prtbench.transport.wavelet.cubemap import directions_to_texels
 
     face, row, col, _, _ = directions_to_texels(dirs, t)
     return face * t * t + row * t + col
@@ -176,7 +180,6 @@ class BrdfTable:
     def build(cls, normals: np.ndarray, *, t: int, n: int, keep: int, shininess: float,
               samples: int = 1) -> tuple["BrdfTable", np.ndarray]:
         """The table for vertex ``normals`` (P, 3) and each vertex's slot (P,) int64 in it."""
-        from prtbench.transport.wavelet.cubemap import texel_directions
 
         t = check_resolution(t, what="brdf_table")
         bins = direction_bins(normals, t)

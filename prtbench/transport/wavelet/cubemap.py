@@ -32,7 +32,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.transport.latlong import lat_long_directions
 
 if TYPE_CHECKING:
     from prtbench.transport.lights import EnvironmentLight
@@ -234,7 +236,6 @@ def from_lat_long(light: "EnvironmentLight", n: int, *, supersample: int | None 
 
 def light_cubemap(light: "EnvironmentLight", n: int) -> np.ndarray:
     """:func:`from_lat_long` at the default supersampling, cached per (light content, N)."""
-    from prtbench.api.cache import cached_arrays, content_key
 
     n = check_resolution(n)
     s = default_supersample(n, light.height)
@@ -251,7 +252,6 @@ def to_lat_long(cube: np.ndarray, height: int, *, interpolation: str = "bilinear
     ndarray, shape (H, 2H, ...), float64
         Mitsuba's sample positions (:meth:`EnvironmentLight.texel_directions`).
     """
-    from prtbench.transport.lights import lat_long_directions
 
     w = 2 * height
     u = (np.arange(w) + 0.5) / w

@@ -23,11 +23,14 @@ transport, which Ng 2003 also quantises (:mod:`prtbench.transport.wavelet.sparse
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
+from tqdm import tqdm
 
+from prtbench.api.cache import cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError
 from prtbench.transport.parallel import map_chunks, parallel_chunks
 from prtbench.transport.raytrace import Tracer, offset_origins
@@ -221,13 +224,13 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
     cosine : bool
         True (default): the transport V·max(n·ω, 0) with solid angles. False: the texel's
         visible fraction V_t alone (front-facing unoccluded subsamples / S², no cosine, no
-        weight), the visibility factor of Ng 2004's triple product (``wavelet-tp``), whose
+        weight), the visibility factor of Ng 2004's triple product, whose
         BRDF factor carries the cosine and the solid angles.
     lobes : callable, optional
         ``lobes(sl, dirs_t) -> (c, n_lobes, R)`` float32 per-ray factors of the points ``sl``
         (c of them) for the ray directions ``dirs_t`` (3, R), texel-major: each lobe is its
         own transport row, ``V·max(n·ω, 0)·lobe(ω)`` (e.g. a BRDF term for a fixed view, as
-        ``wavelet-image`` does). The rays are traced once for all lobes.
+        a fixed-view method does). The rays are traced once for all lobes.
     n_lobes : int
         Lobes ``lobes`` returns (1 without ``lobes``).
 
@@ -239,9 +242,6 @@ def compute_wavelet_transport(scene: "Scene", points: np.ndarray, normals: np.nd
         ``rays`` traced, ``candidate_rays`` (before the cull), ``trace_s`` (seconds inside
         embree, summed over threads).
     """
-    import time
-
-    from tqdm import tqdm
 
     n = check_resolution(n)
     m = 6 * n * n
@@ -336,7 +336,6 @@ def cached_transport(name: str, *key_parts, scene: "Scene", points: np.ndarray,
     reuse it. Returns the transport, its traced ray count and trace seconds (NaN for an entry
     cached before trace time was stored).
     """
-    from prtbench.api.cache import cached_arrays, content_key
 
     def compute() -> dict[str, np.ndarray]:
         transport, stats = compute_wavelet_transport(

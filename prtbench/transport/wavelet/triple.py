@@ -39,6 +39,7 @@ import numpy as np
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.transport.wavelet.cubemap import check_resolution
+from prtbench.transport.wavelet.haar import inverse
 
 #: Sign of the LH, HL and HH wavelets of a node on its child quadrant (dy, dx): LH changes sign
 #: across columns, HL across rows, HH across both (the in-place layout of haar.forward).
@@ -313,7 +314,6 @@ def brute_force(light: np.ndarray, visibility: np.ndarray, brdf: np.ndarray) -> 
     visibility, brdf : ndarray, shape (P, M)
         Haar coefficients per point (dense).
     """
-    from prtbench.transport.wavelet.haar import inverse
 
     light = np.asarray(light, dtype=np.float64)
     m, channels = light.shape

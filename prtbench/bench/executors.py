@@ -1,0 +1,225 @@
+"""Where jobs run: in this process, on Dask workers, or each in a process of its own.
+
+Every executor has one interface, :meth:`Executor.map`: a picklable task function and a list
+of items; it yields ``(index, result)`` in the order the tasks finish. A task is expected to
+catch its own errors (:func:`prtbench.bench.submit.measure` never raises); what an executor
+itself loses -- a Dask worker that died, a process that crashed or ran past its time -- comes
+back as a :class:`Lost` in place of the result, so one lost job never aborts the others.
+
+* :class:`SerialExecutor`: one task after another in this process (timings taken on a quiet
+  machine, the CLI's ``run``, the paper tables' cells).
+* :class:`DaskExecutor`: Dask distributed, on an embedded ``LocalCluster`` (one worker per core
+  by default, spawned processes, one thread each: :mod:`prtbench.bench.cluster`) or on an
+  existing scheduler (``--scheduler tcp://HOST:PORT``). Sweeps and ``advise``.
+* :class:`SubprocessExecutor`: each task in a fresh spawned process with a timeout, so a crash
+  or a hang is measured instead of taking the driver down (the stability matrix).
+"""
+
+from __future__ import annotations
+
+import functools
+import multiprocessing
+import os
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from prtbench.api.errors import InvalidInputError
+from prtbench.bench.cluster import (
+    check_worker_threads,
+    connect,
+    cores,
+    local_cluster,
+    one_line,
+    register_setup,
+)
+
+
+@dataclass(frozen=True)
+class Lost:
+    """A task whose result never came back: ``kind`` is ``worker``, ``crash`` or ``timeout``."""
+
+    kind: str
+    error: str
+    seconds: float = 0.0
+
+
+class Executor(ABC):
+    """Runs tasks; see the module docstring."""
+
+    #: Tasks that run at once (1: serial). Rows record it: concurrent workers share cores and
+    #: distort frame times.
+    workers: int = 1
+    #: How the executor is described in progress lines and stored rows.
+    kind: str = ""
+
+    def start(self) -> int:
+        """Start the workers (if not yet); returns how many run at once."""
+        return self.workers
+
+    @abstractmethod
+    def map(self, task: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """``(index, task(items[index]) or Lost)`` as each task finishes."""
+
+    def close(self) -> None:
+        """Release workers and connections (idempotent)."""
+
+    def __enter__(self) -> "Executor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class SerialExecutor(Executor):
+    """Each task in this process, in order."""
+
+    workers = 1
+    kind = "serial"
+
+    def map(self, task, items):
+        for index, item in enumerate(items):
+            yield index, task(item)
+
+
+class DaskExecutor(Executor):
+    """Tasks on Dask workers.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Workers of the embedded ``LocalCluster`` (default: one per core). Ignored with
+        ``scheduler``.
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://HOST:PORT``), checked on creation.
+    threads : int, optional
+        ``PRTBENCH_THREADS`` / ``LP_NUM_THREADS`` of every worker (default: each worker's share
+        of its host's cores).
+    """
+
+    kind = "dask"
+
+    def __init__(self, *, workers: int | None = None, scheduler: str | None = None,
+                 threads: int | None = None):
+        if workers is not None and workers < 1:
+            raise InvalidInputError(f"--workers {workers}; accepted: 1 or more Dask workers "
+                                    "(0 runs serially, without Dask)")
+        self.threads = check_worker_threads(threads)
+        self.scheduler = scheduler
+        self._requested = workers
+        self._client = connect(scheduler) if scheduler else None  # fails before any work
+        self._cluster = None
+        self.workers = 0
+
+    def start(self) -> int:
+        if self._client is None:
+            from distributed import Client
+
+            self._cluster = local_cluster(self._requested or cores(), threads=self.threads)
+            self._client = Client(self._cluster)
+        if not self.workers:
+            self.workers = register_setup(self._client, threads=self.threads)
+        return self.workers
+
+    def map(self, task, items):
+        from distributed import as_completed
+
+        self.start()
+        client = self._client
+        futures = {}
+        for index, item in enumerate(items):
+            # A unique key: submit() would otherwise merge equal tasks across calls.
+            future = client.submit(task, item, pure=False,
+                                   key=f"prtbench-{index}-{os.urandom(6).hex()}")
+            futures[future] = index
+        for future in as_completed(futures):
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 - a worker died (KilledWorker) or similar
+                result = Lost("worker", f"worker lost: {one_line(exc)}")
+            yield futures[future], result
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+
+def _child(conn, task, item) -> None:
+    """Body of a spawned process: run the task, send its result back."""
+    conn.send(task(item))
+    conn.close()
+
+
+class SubprocessExecutor(Executor):
+    """Each task in a fresh spawned process, killed after its timeout.
+
+    Parameters
+    ----------
+    timeout_s : float or callable
+        Seconds each task may take, or a function of the item giving them.
+    """
+
+    workers = 1
+    kind = "subprocess"
+
+    def __init__(self, *, timeout_s: float | Callable[[Any], float]):
+        self.timeout_of = timeout_s if callable(timeout_s) else (lambda item: float(timeout_s))
+
+    def map(self, task, items):
+        for index, item in enumerate(items):
+            yield index, self.run_one(task, item, timeout_s=self.timeout_of(item))
+
+    @staticmethod
+    def run_one(task, item, *, timeout_s: float):
+        """``task(item)`` in a spawned process; a :class:`Lost` if it died or ran too long."""
+        ctx = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
+        parent, child = ctx.Pipe(duplex=False)
+        process = ctx.Process(target=_child, args=(child, task, item), daemon=True)
+        start = time.perf_counter()
+        process.start()
+        child.close()
+        result = None
+        try:
+            if parent.poll(timeout_s):
+                try:
+                    result = parent.recv()
+                except EOFError:
+                    result = None
+        finally:
+            process.join(5.0 if result is not None else 0.1)
+            if process.is_alive():
+                process.kill()
+                process.join()
+            parent.close()
+        wall = time.perf_counter() - start
+        if result is not None:
+            return result
+        if wall >= timeout_s:
+            return Lost("timeout", f"no answer after {timeout_s:g} s (killed)", wall)
+        return Lost("crash", f"process died with exit code {process.exitcode}", wall)
+
+
+def make_executor(*, workers: int | None = None, scheduler: str | None = None,
+                  threads: int | None = None) -> Executor:
+    """The executor of the ``--workers`` / ``--scheduler`` / ``--worker-threads`` options:
+    serial for ``workers=0`` without a scheduler, else Dask."""
+    if workers is not None and workers < 0:
+        raise InvalidInputError(f"--workers {workers}; accepted: 0 (serial, no Dask) or more")
+    if workers == 0 and not scheduler:
+        if threads is not None:
+            raise InvalidInputError(f"--worker-threads {threads} with --workers 0; accepted: "
+                                    "--worker-threads with Dask workers (the serial run uses "
+                                    "PRTBENCH_THREADS)")
+        return SerialExecutor()
+    return DaskExecutor(workers=workers, scheduler=scheduler, threads=threads)
+
+
+def bind(task: Callable, /, **kwargs) -> Callable:
+    """``task`` with keyword arguments fixed, picklable for Dask and spawned processes."""
+    return functools.partial(task, **kwargs)
