@@ -1,10 +1,12 @@
 """Where jobs run: in this process, on Dask workers, or each in a process of its own.
 
-Every executor has one interface, :meth:`Executor.map`: a picklable task function and a list
-of items; it yields ``(index, result)`` in the order the tasks finish. A task is expected to
-catch its own errors (:func:`prtbench.bench.submit.measure` never raises); what an executor
-itself loses -- a Dask worker that died, a process that crashed or ran past its time -- comes
-back as a :class:`Lost` in place of the result, so one lost job never aborts the others.
+Every executor has one interface: :meth:`Executor.submit` a picklable task function and one
+item, then :meth:`Executor.next_finished` for the next ``(handle, result)`` to finish (so a
+driver can keep every worker busy and decide what to run next from what came back), and
+:meth:`Executor.map` on top of them for a list of items. A task is expected to catch its own
+errors (:func:`prtbench.bench.submit.measure` never raises); what an executor itself loses --
+a Dask worker that died, a process that crashed or ran past its time -- comes back as a
+:class:`Lost` in place of the result, so one lost job never aborts the others.
 
 * :class:`SerialExecutor`: one task after another in this process (timings taken on a quiet
   machine, the CLI's ``run``, the paper tables' cells).
@@ -60,8 +62,26 @@ class Executor(ABC):
         return self.workers
 
     @abstractmethod
+    def submit(self, task: Callable[[Any], Any], item: Any) -> Any:
+        """Start ``task(item)``; returns a handle that :meth:`next_finished` gives back."""
+
+    @abstractmethod
+    def next_finished(self) -> tuple[Any, Any]:
+        """``(handle, result or Lost)`` of the next submitted task to finish (blocking)."""
+
+    @property
+    @abstractmethod
+    def pending(self) -> int:
+        """Tasks submitted and not yet returned by :meth:`next_finished`."""
+
     def map(self, task: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
         """``(index, task(items[index]) or Lost)`` as each task finishes."""
+        index_of = {}
+        for index, item in enumerate(items):
+            index_of[id(self.submit(task, item))] = index
+        for _ in range(len(index_of)):
+            handle, result = self.next_finished()
+            yield index_of[id(handle)], result
 
     def close(self) -> None:
         """Release workers and connections (idempotent)."""
@@ -74,14 +94,26 @@ class Executor(ABC):
 
 
 class SerialExecutor(Executor):
-    """Each task in this process, in order."""
+    """Each task in this process, in order (a task runs when its result is asked for)."""
 
     workers = 1
     kind = "serial"
 
-    def map(self, task, items):
-        for index, item in enumerate(items):
-            yield index, task(item)
+    def __init__(self) -> None:
+        self._queue: list[tuple[object, Callable, Any]] = []
+
+    def submit(self, task, item):
+        handle = object()
+        self._queue.append((handle, task, item))
+        return handle
+
+    def next_finished(self):
+        handle, task, item = self._queue.pop(0)
+        return handle, task(item)
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
 
 
 class DaskExecutor(Executor):
@@ -111,6 +143,8 @@ class DaskExecutor(Executor):
         self._requested = workers
         self._client = connect(scheduler) if scheduler else None  # fails before any work
         self._cluster = None
+        self._finished = None
+        self._pending = 0
         self.workers = 0
 
     def start(self) -> int:
@@ -123,25 +157,34 @@ class DaskExecutor(Executor):
             self.workers = register_setup(self._client, threads=self.threads)
         return self.workers
 
-    def map(self, task, items):
+    def submit(self, task, item):
         from distributed import as_completed
 
         self.start()
-        client = self._client
-        futures = {}
-        for index, item in enumerate(items):
-            # A unique key: submit() would otherwise merge equal tasks across calls.
-            future = client.submit(task, item, pure=False,
-                                   key=f"prtbench-{index}-{os.urandom(6).hex()}")
-            futures[future] = index
-        for future in as_completed(futures):
-            try:
-                result = future.result()
-            except Exception as exc:  # noqa: BLE001 - a worker died (KilledWorker) or similar
-                result = Lost("worker", f"worker lost: {one_line(exc)}")
-            yield futures[future], result
+        # A unique key: Dask would otherwise merge equal tasks across calls.
+        future = self._client.submit(task, item, pure=False,
+                                     key=f"prtbench-{os.urandom(8).hex()}")
+        if self._finished is None:
+            self._finished = as_completed()
+        self._finished.add(future)
+        self._pending += 1
+        return future
+
+    def next_finished(self):
+        future = next(self._finished)
+        self._pending -= 1
+        try:
+            result = future.result()
+        except Exception as exc:  # noqa: BLE001 - a worker died (KilledWorker) or similar
+            result = Lost("worker", f"worker lost: {one_line(exc)}")
+        return future, result
+
+    @property
+    def pending(self) -> int:
+        return self._pending
 
     def close(self) -> None:
+        self._finished, self._pending = None, 0
         if self._client is not None:
             self._client.close()
             self._client = None
@@ -170,10 +213,20 @@ class SubprocessExecutor(Executor):
 
     def __init__(self, *, timeout_s: float | Callable[[Any], float]):
         self.timeout_of = timeout_s if callable(timeout_s) else (lambda item: float(timeout_s))
+        self._queue: list[tuple[object, Callable, Any]] = []
 
-    def map(self, task, items):
-        for index, item in enumerate(items):
-            yield index, self.run_one(task, item, timeout_s=self.timeout_of(item))
+    def submit(self, task, item):
+        handle = object()
+        self._queue.append((handle, task, item))
+        return handle
+
+    def next_finished(self):
+        handle, task, item = self._queue.pop(0)
+        return handle, self.run_one(task, item, timeout_s=self.timeout_of(item))
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
 
     @staticmethod
     def run_one(task, item, *, timeout_s: float):

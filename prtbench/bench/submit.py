@@ -32,6 +32,7 @@ from typing import Any
 from tqdm import tqdm
 
 from prtbench.api import config as config_mod
+from prtbench.api.errors import PrtbenchError
 from prtbench.bench.cluster import one_line
 from prtbench.bench.executors import Executor, Lost, SerialExecutor, bind
 from prtbench.bench.job import NO_OUTPUTS, Job, Outputs
@@ -287,6 +288,63 @@ def submit(jobs: Sequence[Job], *, profile: str = "quick", executor: Executor | 
     return Submission([results[i] for i in range(len(tasks))], ran if todo else 0,
                       time.perf_counter() - start, executor.kind,
                       per_job=[results[i] for i in owners])
+
+
+class JobPool:
+    """Jobs submitted one at a time and collected as they finish, on one executor.
+
+    The incremental form of :func:`submit` for drivers that decide what to run next from what
+    came back (the advisor's search keeps every worker busy with it): each job is prepared
+    here first (a refusal comes back at once as a failed result), then measured on the
+    executor; with ``store`` its rows are appended here, by the client.
+
+    Parameters
+    ----------
+    executor : Executor
+        Where the jobs run (the caller closes it).
+    results_path : Path, optional
+    store : bool
+    """
+
+    def __init__(self, executor: Executor, *, results_path: Path | None = None,
+                 store: bool = False):
+        self.executor, self.results_path, self.store = executor, results_path, store
+        self._code = code_version()
+        self._ready: list[tuple[Any, JobResult]] = []
+        self._tokens: dict[int, tuple[Any, Job, str]] = {}
+        self._writer = ResultsStore(results_path) if store else None
+        self._task = None
+
+    def submit(self, job: Job, *, profile: str, token: Any) -> None:
+        """Start ``job`` in ``profile``; :meth:`next_finished` gives back ``token`` with it."""
+        job = job.in_profile(profile)
+        try:
+            prepared = prepare(job, results_path=self.results_path, store=self.store)
+        except PrtbenchError as exc:
+            self._ready.append((token, JobResult(job, "", "failed", one_line(exc))))
+            return
+        key = job_key(prepared, code=self._code)
+        if self._task is None:
+            in_process = isinstance(self.executor, SerialExecutor)
+            self._task = bind(measure, workers=max(1, self.executor.start()), local=in_process)
+        handle = self.executor.submit(self._task, (job, key, NO_OUTPUTS))
+        self._tokens[id(handle)] = (token, job, key)
+
+    @property
+    def pending(self) -> int:
+        return len(self._ready) + len(self._tokens)
+
+    def next_finished(self) -> tuple[Any, JobResult]:
+        """``(token, JobResult)`` of the next job to finish."""
+        if self._ready:
+            return self._ready.pop(0)
+        handle, result = self.executor.next_finished()
+        token, job, key = self._tokens.pop(id(handle))
+        if isinstance(result, Lost):
+            result = JobResult(job, key, "failed", result.error, seconds=result.seconds)
+        if result.status == "done" and self._writer is not None:
+            self._writer.append(result.rows)
+        return token, result
 
 
 def run(job: Job, *, profile: str = "quick", outputs: Outputs = NO_OUTPUTS,

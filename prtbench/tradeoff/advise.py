@@ -40,7 +40,7 @@ from prtbench.bench.cluster import one_line
 from prtbench.bench.executors import Executor, make_executor
 from prtbench.bench.job import Job
 from prtbench.bench.runner import prepare
-from prtbench.bench.submit import rows_as_dicts, submit
+from prtbench.bench.submit import JobPool, rows_as_dicts, submit
 from prtbench.scene.registry import SCENES, get_scene
 from prtbench.store.results import default_path
 from prtbench.tradeoff.analyze import analyze_scene
@@ -135,6 +135,22 @@ def evaluate_jobs(cells: Sequence[Job], *, profile: str, executor: Executor | No
     return out
 
 
+class _CandidatePool:
+    """The search's pool (:func:`prtbench.tradeoff.search.search`) over a :class:`JobPool`:
+    candidates in, their cell results out, as they finish."""
+
+    def __init__(self, jobs: JobPool, cell: Callable[[Candidate], Job]):
+        self.jobs, self.cell = jobs, cell
+
+    def submit(self, candidate: Candidate, profile: str) -> None:
+        self.jobs.submit(self.cell(candidate), profile=profile, token=candidate)
+
+    def next_result(self) -> tuple[Candidate, CellResult]:
+        candidate, result = self.jobs.next_finished()
+        return candidate, (CellResult(rows_as_dicts(result.rows)) if result.status == "done"
+                           else CellResult([], result.error))
+
+
 def _hint(choice: Evaluation, space: SearchSpace, judge: Judge,
           history: Sequence[Evaluation]) -> str:
     """What would be needed to reach the target, from the knobs at their limit and the analysis."""
@@ -222,8 +238,9 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     keep_fraction : float
         Fraction of methods kept after the ``smoke`` screening (at least two).
     workers : int, optional
-        Dask workers of the screening runs (default: one per core; 0: serially in this
-        process).
+        Dask workers the search's candidates run on (default: one per core; 0: serially in
+        this process). A search ranked or bounded by ``frame_ms`` always runs serially:
+        frame times measured side by side are not the machine's.
 
     Returns
     -------
@@ -257,11 +274,13 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     if verify is None:
         outputs.check_results_store("--results", results_path or default_path())
         outputs.check_cache()
-    # Screening runs on Dask workers (one per core), the verification run alone in this
-    # process, so its stored frame times are taken on a quiet machine.
-    screening = None if evaluate is not None else make_executor(workers=workers)
-    evaluate = evaluate or (lambda cells, *, profile: evaluate_jobs(
-        cells, profile=profile, executor=screening))
+    # The search runs its candidates on Dask workers (one per core), each method's chain as
+    # soon as a worker is free; the verification run runs alone in this process, so its
+    # stored frame times are taken on a quiet machine. Frame times measured side by side are
+    # distorted, so a search that ranks by them runs serially.
+    timed = cost == "frame_ms" or any(c.name == "frame_ms" for c in constraints)
+    screening = None if evaluate is not None else make_executor(
+        workers=0 if timed else workers)
     verify = verify or (lambda cells, *, profile: evaluate_jobs(
         cells, profile=profile, results_path=results_path, store=True))
 
@@ -278,7 +297,9 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
             return Job(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
                         light=light, overrides=c.overrides, scene_params=scene_params)
 
-        def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:
+        pool = _CandidatePool(JobPool(screening), cell) if screening is not None else None
+
+        def run_batch(batch: Sequence[Candidate], at: str) -> list[CellResult]:  # injected
             results = list(evaluate([cell(c) for c in batch], profile=at))
             if len(results) != len(batch):
                 raise PrtbenchError(f"evaluate returned {len(results)} results for {len(batch)} cells")
@@ -289,7 +310,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         history, notes, pruned = [], [], list(space.pruned)
         starts: dict[str, Candidate] = {}
         if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
-            screen = search(space, names, profile="smoke", run_batch=run_batch, judge=judge, echo=echo)
+            screen = search(space, names, profile="smoke", judge=judge, echo=echo,
+                            **({"pool": pool} if pool else {"run_batch": run_batch}))
             history += screen
             best = best_per_method(screen)
             ranked = sorted(best.values(), key=Evaluation.key)
@@ -303,7 +325,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
             starts = {e.candidate.method: e.candidate for e in kept}
             notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
                          f"{', '.join(names)}")
-        final = search(space, names, profile=profile, run_batch=run_batch, judge=judge,
+        final = search(space, names, profile=profile, judge=judge,
+                       **({"pool": pool} if pool else {"run_batch": run_batch}),
                        starts=starts, echo=echo)
         history += final
     finally:

@@ -202,36 +202,71 @@ class Region:
         return False
 
 
-def search(space: SearchSpace, methods: Sequence[str], *, profile: str, run_batch, judge: Judge,
-           starts: Mapping[str, Candidate] | None = None, echo: bool = False) -> list[Evaluation]:
+def search(space: SearchSpace, methods: Sequence[str], *, profile: str, judge: Judge,
+           run_batch=None, pool=None, starts: Mapping[str, Candidate] | None = None,
+           echo: bool = False) -> list[Evaluation]:
     """Search the candidates of ``methods`` at one profile; returns every evaluation made.
 
-    Each round evaluates one candidate per still-undecided method, as one batch (so a
-    parallel ``evaluate`` runs methods side by side). A method with a start (its screening
-    optimum) is searched in a region around it (:class:`Region`).
+    Each method's search is a chain (its next candidate follows from its results); the chains
+    of different methods are independent, so they run side by side:
+
+    * ``run_batch(candidates, profile) -> results``: in rounds, one candidate per undecided
+      method per round, evaluated as one batch;
+    * ``pool`` (``submit(candidate, profile)`` and ``next_result() -> (candidate, result)``):
+      without rounds, a method's next candidate is sent as soon as its last one came back, so
+      parallel workers never wait for the slowest method of a round.
+
+    A method with a start (its screening optimum) is searched in a region around it
+    (:class:`Region`).
     """
+    if (run_batch is None) == (pool is None):
+        raise ValueError("search needs one of run_batch and pool")
     starts = dict(starts or {})
     done: dict[str, dict[Candidate, Evaluation]] = {m: {} for m in methods}
     regions = {m: Region(space.space_of(m).candidates, starts.get(m)) for m in methods}
     history: list[Evaluation] = []
+    in_flight: dict[str, list[Candidate]] = {m: [] for m in methods}
+    finished: set[str] = set()
+
+    def next_of(m: str, incumbent: float) -> Candidate | None:
+        while (c := _next(regions[m].candidates(), done[m], starts.get(m), incumbent)) is None:
+            if not regions[m].widen(done[m]):
+                return None
+        return c
+
+    def record(candidate: Candidate, result) -> None:
+        e = judge(candidate, profile, result)
+        done[candidate.method][candidate] = e
+        history.append(e)
+        if echo:
+            print(f"[advise] {profile}: {candidate.method} {candidate.label()}: "
+                  f"{brief(e, judge)}", file=sys.stderr, flush=True)
+
     while True:
         incumbent = min((e.cost for e in history if e.feasible), default=math.inf)
         batch = []
         for m in methods:
-            while (c := _next(regions[m].candidates(), done[m], starts.get(m), incumbent)) is None:
-                if not regions[m].widen(done[m]):
-                    break
-            if c is not None:
+            if in_flight[m] or m in finished:
+                continue
+            c = next_of(m, incumbent)
+            if c is None:
+                finished.add(m)
+            else:
                 batch.append(c)
-        if not batch:
+        if pool is None:
+            if not batch:
+                return history
+            for candidate, result in zip(batch, run_batch(batch, profile)):
+                record(candidate, result)
+            continue
+        for candidate in batch:
+            pool.submit(candidate, profile)
+            in_flight[candidate.method].append(candidate)
+        if not any(in_flight.values()):
             return history
-        for candidate, result in zip(batch, run_batch(batch, profile)):
-            e = judge(candidate, profile, result)
-            done[candidate.method][candidate] = e
-            history.append(e)
-            if echo:
-                print(f"[advise] {profile}: {candidate.method} {candidate.label()}: "
-                      f"{brief(e, judge)}", file=sys.stderr, flush=True)
+        candidate, result = pool.next_result()
+        in_flight[candidate.method].remove(candidate)
+        record(candidate, result)
 
 
 def brief(e: Evaluation, judge: Judge) -> str:

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import pytest
 
 from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
+from prtbench.bench.submit import JobResult
 from prtbench.scene.registry import get_scene
 from prtbench.tradeoff import advise as advise_mod
 from prtbench.tradeoff.advise import CellResult, advise, format_advice
@@ -407,11 +408,24 @@ def test_cli_scene_params_reach_the_scene_and_every_cell(tmp_path, monkeypatch, 
                         scenes.append(scene) or analysis(required_bands=2))
     cells = []
 
-    def evaluate(batch, *, profile, **_):  # screening and verification alike
+    def evaluate(batch, *, profile, **_):  # the verification run
         cells.extend(batch)
         return Recorder()(batch, profile=profile)
 
+    class Pool:  # the search's candidates, as they are submitted
+        def __init__(self, executor, **_):
+            self.executor, self.queue = executor, []
+
+        def submit(self, job, *, profile, token):
+            cells.append(job)
+            self.queue.append((token, Recorder()([job], profile=profile)[0]))
+
+        def next_finished(self):
+            token, rows = self.queue.pop(0)
+            return token, JobResult(None, "", "done", rows=rows)
+
     monkeypatch.setattr(advise_mod, "evaluate_jobs", evaluate)
+    monkeypatch.setattr(advise_mod, "JobPool", Pool)
     code = main(["advise", "--scene", "sphere-over-plane", "--scene-param", "radius=0.3",
                  "--target", "psnr_masked>=24", "--method", "vertex", "--profile", "smoke",
                  "--results", str(tmp_path / "r.sqlite"), "--quiet"])
