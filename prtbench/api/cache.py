@@ -10,6 +10,9 @@ file is removed and recomputed, never used.
 Concurrent processes (sweep workers, ``pytest -n 2`` workers sharing one cache) compute an
 entry once: :func:`entry_lock` is an exclusive inter-process lock per entry, and a process
 that finds an entry missing takes it, looks again, and only then computes.
+
+Every hit marks its entry as used (:func:`record_use`, the file's mtime), so the size cap
+of :mod:`prtbench.api.cache_size` evicts the least recently used entries first.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from filelock import FileLock
+from filelock import FileLock, Timeout
 
 
 def cache_root() -> Path:
@@ -74,28 +77,90 @@ def atomic_path(path: Path) -> Iterator[Path]:
             tmp_path.unlink()
 
 
+def entry_key(file_name: str) -> str:
+    """The key of the entry a file of that name belongs to: the name up to its first dot.
+
+    An entry's file and its sidecars (``<key>.npz``, ``<key>.json`` build record,
+    ``<key>.time.json`` compute time, ``.<key>.npz.*.tmp`` writes in progress) are one entry and
+    share one lock. Keys never hold a dot (content keys are hexadecimal).
+    """
+    return file_name.lstrip(".").split(".", 1)[0]
+
+
+def entry_name(path: Path) -> Path:
+    """The entry ``path`` belongs to: its folder and :func:`entry_key` (a folder entry such as
+    ``renders/<run_id>`` is named by itself)."""
+    path = Path(path)
+    return path.with_name(entry_key(path.name))
+
+
+def _lock_path(path: Path) -> Path:
+    """The lock file of the entry ``path`` belongs to, under ``<cache>/.locks/``."""
+    entry = entry_name(Path(path).resolve())
+    locks = cache_root().resolve() / ".locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    return locks / f"{hashlib.sha256(str(entry).encode()).hexdigest()[:32]}.lock"
+
+
 @contextmanager
 def entry_lock(path: Path) -> Iterator[None]:
     """Hold the inter-process lock of the cache entry at ``path`` (blocking).
 
-    Lock files live apart from the entries, under ``<cache>/.locks/`` (named by a hash of the
-    entry's path), and are removed on release; a reader that does not lock still sees either
-    no entry or a complete one (atomic rename). Removing a released lock file can let a third
-    process lock a new file while a second still holds the old one: at worst an entry is then
-    computed twice and renamed into place twice, never read half-written.
+    One lock per entry (:func:`entry_name`: a file and its sidecars together). Lock files live
+    apart from the entries, under ``<cache>/.locks/`` (named by a hash of the entry's path),
+    and are removed on release; a reader that does not lock still sees either no entry or a
+    complete one (atomic rename). filelock does not take a lock file that was unlinked while it
+    waited (it opens the new one), so one process at a time holds an entry; with an older
+    filelock, at worst an entry is computed twice and renamed into place twice, never read
+    half-written.
     """
-    path = Path(path).resolve()
-    locks = cache_root().resolve() / ".locks"
-    locks.mkdir(parents=True, exist_ok=True)
-    lock_path = locks / f"{hashlib.sha256(str(path).encode()).hexdigest()[:32]}.lock"
+    lock_path = _lock_path(path)
     try:
         with FileLock(str(lock_path)):
             yield
     finally:
-        try:
-            lock_path.unlink()
-        except OSError:  # another process holds it again, or has removed it
-            pass
+        _unlink_quietly(lock_path)
+
+
+@contextmanager
+def try_entry_lock(path: Path) -> Iterator[bool]:
+    """The lock of the entry at ``path`` if no other process holds it (never waits).
+
+    Yields True while it holds the lock, False (holding nothing) when another process holds
+    it: the entry is being computed or removed, and the caller leaves it alone. Eviction
+    (:mod:`prtbench.api.cache_size`) removes an entry only while holding this.
+    """
+    lock_path = _lock_path(path)
+    lock = FileLock(str(lock_path), timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        lock.release()
+        _unlink_quietly(lock_path)
+
+
+def _unlink_quietly(lock_path: Path) -> None:
+    try:
+        lock_path.unlink()
+    except OSError:  # another process holds it again, or has removed it
+        pass
+
+
+def record_use(path: Path) -> None:
+    """Mark the cache entry file ``path`` as used now (its mtime), for LRU eviction.
+
+    One ``utime`` call per cache hit; the access time is not used because ``noatime`` and
+    ``relatime`` mounts do not keep it. A read-only cache is used as it is.
+    """
+    try:
+        os.utime(path)
+    except OSError:
+        pass
 
 
 def _digest(arrays: Mapping[str, np.ndarray]) -> str:
@@ -118,7 +183,10 @@ def save_arrays(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
 
 
 def load_arrays(path: Path) -> dict[str, np.ndarray] | None:
-    """Load an ``.npz`` written by :func:`save_arrays`; ``None`` if missing or corrupt."""
+    """Load an ``.npz`` written by :func:`save_arrays`; ``None`` if missing or corrupt.
+
+    A good load marks the entry as used (:func:`record_use`).
+    """
     path = Path(path)
     if not path.exists():
         return None
@@ -132,6 +200,7 @@ def load_arrays(path: Path) -> dict[str, np.ndarray] | None:
     if checksum != _digest(arrays):
         path.unlink(missing_ok=True)
         return None
+    record_use(path)
     return arrays
 
 

@@ -32,6 +32,7 @@ from typing import Any
 from tqdm import tqdm
 
 from prtbench.api import config as config_mod
+from prtbench.api.cache_size import enforce_cap
 from prtbench.api.errors import PrtbenchError
 from prtbench.bench.cluster import one_line
 from prtbench.bench.executors import Executor, Lost, SerialExecutor, bind
@@ -253,6 +254,8 @@ def submit(jobs: Sequence[Job], *, profile: str = "quick", executor: Executor | 
             i: JobResult(job, key, "skipped") for i, (job, key, _) in enumerate(tasks)
             if key in stored}
         todo = [i for i in range(len(tasks)) if i not in results]
+        if todo:  # the jobs are valid: bring the cache under $PRTBENCH_CACHE_MAX (LRU) first
+            enforce_cap()
         writer = ResultsStore(results_path) if store and todo else None
         bar = _Progress(len(tasks), len(results), enabled=progress, desc=desc)
         ran = 0
@@ -324,7 +327,8 @@ class JobPool:
             self._ready.append((token, JobResult(job, "", "failed", one_line(exc))))
             return
         key = job_key(prepared, code=self._code)
-        if self._task is None:
+        if self._task is None:  # the first job: bring the cache under its cap first
+            enforce_cap()
             in_process = isinstance(self.executor, SerialExecutor)
             self._task = bind(measure, workers=max(1, self.executor.start()), local=in_process)
         handle = self.executor.submit(self._task, (job, key, NO_OUTPUTS))

@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "list": ("listing", "list methods, scenes, lights, tables, figures, profiles or assets"),
     "describe": ("describe", "a method's summary, paper and knobs (type, default, range)"),
     "assets": ("assets", "fetch pinned mesh/HDRI packages into the cache"),
+    "cache": ("cache", "the cache: size per kind (info) and removing entries (prune)"),
     "scene": ("scene", "inspect an asset file (or a built-in scene) as a prtbench scene"),
     "run": ("run", "precompute, render, compare with the reference, store"),
     "reference": ("reference", "render (and cache) Mitsuba path-traced references"),

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from prtbench.api.cache import cache_root, content_key, entry_lock
+from prtbench.api.cache import cache_root, content_key, entry_lock, record_use
 from prtbench.api.errors import InvalidInputError
 from prtbench.io.imageio import display, read_exr, read_exr_metadata, write_exr
 from prtbench.render.mitsuba_bsdf import material_bsdf
@@ -269,6 +269,7 @@ def _load_cached(path: Path) -> Reference | None:
         log.debug("discarded cached reference %s (%s)", path, one_line(exc))
         path.unlink(missing_ok=True)
         return None
+    record_use(path)  # a hit: last use for the cache's LRU eviction
     return ref
 
 
