@@ -22,10 +22,13 @@ $(VENV)/.installed: pyproject.toml scripts/install-system-deps.sh
 	@touch $@
 
 # pytest on every core (pytest-xdist; the workers of one run share one temporary cache).
+# CI adds report files (docs/ci.md): PYTEST_ADDOPTS=--junitxml=... and
+# REGRESS_FLAGS="--junit out/ci/regress.xml".
 PYTEST_WORKERS ?= auto
+REGRESS_FLAGS ?=
 test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric regression
 	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal
-	$(PRTBENCH) regress
+	$(PRTBENCH) regress $(REGRESS_FLAGS)
 	@if command -v chromium >/dev/null; then $(MAKE) --no-print-directory test-browser; \
 	else echo "test-browser skipped: chromium is not installed (make setup installs it as root)"; fi
 
@@ -66,7 +69,7 @@ sweep: setup  ## run a sweep file (SWEEP=..., PROFILE=...); rows in results/, re
 	$(PRTBENCH) sweep $(SWEEP) --profile $(PROFILE)
 
 regress: setup
-	$(PRTBENCH) regress
+	$(PRTBENCH) regress $(REGRESS_FLAGS)
 
 regress-update: setup  ## the only way to rewrite tests/baselines/metrics.json
 	$(PRTBENCH) regress --update

@@ -17,6 +17,11 @@ e.g. a compressed form of the method's transfer) and
 Only ``prtbench regress --update`` rewrites the file, and only when every updated method passes
 the gate. Runs use a fresh temporary cache unless ``cache`` is given, so a precompute change
 without a version bump cannot pass against stale artifacts.
+
+A cases file (:mod:`prtbench.bench.regress_cases`, ``--cases``) replaces the built-in cases by a
+team's own (its scene files, its plug-in methods) with a baseline file of its own. Every verdict
+is a :class:`~prtbench.bench.regress_report.Check`, printed as it comes and, with ``junit_path``
+(``--junit``), written as JUnit XML at the end.
 """
 
 from __future__ import annotations
@@ -30,16 +35,21 @@ import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from prtbench.api.cache import atomic_path
 from prtbench.api.errors import InvalidInputError, UnknownNameError
 from prtbench.api.method import METHODS
-from prtbench.bench.cluster import one_line
+from prtbench.bench.cluster import cores, one_line
 from prtbench.bench.executors import Lost, make_executor
 from prtbench.bench.job import Job
 from prtbench.bench.metrics import LDR_METRICS
+from prtbench.bench.outputs import check_file
+from prtbench.bench.regress_cases import DEFAULT_CASE, PROFILE, RegressionCase, load_cases
+from prtbench.bench.regress_report import (BASELINE_TEST, GATE_TEST, Check, error_checks,
+                                           failed, metric_check, write_junit)
 from prtbench.bench.runner import prepare
 from prtbench.bench.submit import run
 from prtbench.bench.trivial import GATE_METRICS, gate_failures, trivial_scores, visibility_knob
@@ -48,7 +58,6 @@ from prtbench.render.reference import render_reference
 from prtbench.transport.raytrace import geometry_mask
 
 DEFAULT_BASELINES = Path(__file__).resolve().parents[2] / "tests" / "baselines" / "metrics.json"
-DEFAULT_CASE = {"scene": "plants", "variant": "diffuse", "light": "sky"}
 #: Absolute tolerances per metric: wide enough for Monte-Carlo and rasteriser differences
 #: between machines (llvmpipe vs NVIDIA, llvm vs scalar Mitsuba), tight enough to catch a
 #: broken shader, transfer or mapping (those move PSNR by several dB).
@@ -134,7 +143,7 @@ def case_job(method: str, *, overrides: Mapping[str, Any] | None = None) -> Job:
     case = _case_of(method)  # a ``method:variant`` case runs the method with its overrides
     method = split_case(method)[0]
     return Job(method=method, scene=case["scene"], variant=case["variant"], light=case["light"],
-               profile="smoke", overrides={**case.get("overrides", {}), **(overrides or {})},
+               profile=PROFILE, overrides={**case.get("overrides", {}), **(overrides or {})},
                scene_params=dict(case.get("scene_params", {})))
 
 
@@ -182,20 +191,25 @@ def gate(job: Job, metrics: Mapping[str, float]) -> list[str]:
     return gate_failures(metrics, trivial)
 
 
-def measure(method: str) -> Measurement:
-    """Run ``method`` (or a ``method:variant`` case) on its regression case (smoke profile),
-    with its trivial images."""
-    job = case_job(method)
+def measure(case: str | RegressionCase) -> Measurement:
+    """Run a regression case (smoke profile), with its trivial images.
+
+    ``case``: a method's name or a ``method:variant`` case, or a case of a cases file.
+    """
+    if isinstance(case, RegressionCase):
+        job, record = case.job, dict(case.record)
+    else:
+        job, record = case_job(case), _case_of(case)
     summary = run(job, store=False, progress=False, echo=False).summary
     trivial, skipped = trivial_results(job)
-    return Measurement(_case_of(method), summary.mean_metrics(), trivial, skipped)
+    return Measurement(record, summary.mean_metrics(), trivial, skipped)
 
 
-def _measure_safely(name: str) -> tuple[Measurement | None, str, float]:
+def _measure_safely(case: str | RegressionCase) -> tuple[Measurement | None, str, float]:
     """(measurement or None, the one-line error of a case that could not run, seconds)."""
     start = time.perf_counter()
     try:
-        return measure(name), "", time.perf_counter() - start
+        return measure(case), "", time.perf_counter() - start
     except Exception as exc:  # noqa: BLE001 - a broken method fails its case, not the run
         return None, one_line(exc), time.perf_counter() - start
 
@@ -298,38 +312,50 @@ def _fmt(values: Mapping[str, float]) -> str:
     return ", ".join(f"{m}={values[m]:.4f}" for m in GATE_METRICS if m in values)
 
 
-def _report_gate(name: str, result: Measurement) -> bool:
-    for label, scores in result.trivial.items():
-        print(f"{name}: trivial {label}: {_fmt(scores)}")
-    for label, reason in result.skipped.items():
-        print(f"{name}: trivial {label}: skipped ({reason})")
+def gate_check(name: str, result: Measurement, seconds: float) -> Check:
+    """The gate of a measured case: its scores and each trivial image's as notes, a FAIL line per
+    trivial image it does not beat (or one ``gate ok`` line)."""
+    notes = [f"{_fmt(result.metrics)} on {json.dumps(result.case)} "
+             f"({seconds:.1f} s with its trivial images)"]
+    notes += [f"trivial {label}: {_fmt(scores)}" for label, scores in result.trivial.items()]
+    notes += [f"trivial {label}: skipped ({reason})" for label, reason in result.skipped.items()]
     failures = result.gate_failures()
-    for line in failures:
-        print(f"{name}: FAIL {line}")
-    if not failures:
-        print(f"{name}: gate ok ({_fmt(result.metrics)} beats {', '.join(result.trivial)})")
-    return not failures
+    if failures:
+        return Check(name, GATE_TEST, "fail", "; ".join(failures),
+                     lines=tuple(f"FAIL {line}" for line in failures), notes=tuple(notes),
+                     seconds=seconds)
+    verdict = f"{_fmt(result.metrics)} beats {', '.join(result.trivial)}"
+    return Check(name, GATE_TEST, "ok", verdict, lines=(f"gate ok ({verdict})",),
+                 notes=tuple(notes), seconds=seconds)
 
 
-def _compare(name: str, specs: Mapping[str, tuple[float, float]], result: Measurement) -> bool:
-    ok = True
+def compare_checks(name: str, specs: Mapping[str, tuple[float, float]],
+                   result: Measurement) -> list[Check]:
+    """One check per baseline metric of ``name``: within its tolerance, or a FAIL."""
+    checks = []
     for metric, (want, tol) in specs.items():
         if metric not in result.metrics:
-            print(f"{name}: FAIL baseline metric '{metric}' is not produced; produced: "
-                  f"{', '.join(sorted(result.metrics))}")
-            ok = False
-            continue
-        got = float(result.metrics[metric])
-        passed = abs(got - want) <= tol  # NaN compares False: a FAIL
-        ok &= passed
-        print(f"{name}: {metric} = {got:.4f} (baseline {want:.4f} ± {tol}) "
-              f"{'ok' if passed else 'FAIL'}")
-    return ok
+            message = (f"baseline metric '{metric}' is not produced; produced: "
+                       f"{', '.join(sorted(result.metrics))}")
+            checks.append(Check(name, metric, "fail", message, lines=(f"FAIL {message}",),
+                                baseline=want, tolerance=tol))
+        else:
+            checks.append(metric_check(name, metric, float(result.metrics[metric]), want, tol))
+    return checks
+
+
+def _check_names(names: Sequence[str], cases: Mapping[str, RegressionCase] | None) -> None:
+    for name in names:
+        if cases is None:
+            split_case(name)
+        elif name not in cases:
+            raise UnknownNameError("regression case", name, list(cases))
 
 
 def regress(*, update: bool = False, methods: Sequence[str] | None = None,
             baseline_path: Path | None = None, cache: Path | None = None,
-            workers: int = 0) -> bool:
+            workers: int | None = 0, cases_path: Path | None = None,
+            junit_path: Path | None = None) -> bool:
     """Gate and compare (or with ``update``, rewrite) baselines; prints a report.
 
     Parameters
@@ -338,76 +364,112 @@ def regress(*, update: bool = False, methods: Sequence[str] | None = None,
         Rewrite the baselines of ``methods`` (all by default) from this run; refused, writing
         nothing, if any of them fails the trivial-image gate.
     methods : sequence of str, optional
-        Method names or ``method:variant`` cases (default: every case, :func:`case_names`).
+        Method names or ``method:variant`` cases (default: every case, :func:`case_names`);
+        with ``cases_path``, names of that file's cases (default: all of them).
     baseline_path : Path, optional
-        Default :data:`DEFAULT_BASELINES`.
+        Default :data:`DEFAULT_BASELINES`; required with ``cases_path``.
     cache : Path, optional
         Artifact cache to use; default a fresh temporary one, removed afterwards.
-    workers : int
-        Cases measured at once on Dask workers (0: one after another in this process). The
-        gate and the baselines compare image metrics only, never times, so parallel cases
-        give the same verdicts.
+    workers : int, optional
+        Cases measured at once on Dask workers (0: one after another in this process; None:
+        one per core, at most one per case). The gate and the baselines compare image metrics
+        only, never times, so parallel cases give the same verdicts.
+    cases_path : Path, optional
+        A cases file (:mod:`prtbench.bench.regress_cases`) whose cases replace the built-in ones.
+    junit_path : Path, optional
+        Write every check as JUnit XML here at the end (also when cases fail); checked before
+        any work.
 
     Returns
     -------
     bool
-        True if every method passes the gate and (when comparing) its baseline.
+        True if every case passes the gate and (when comparing) its baseline.
     """
+    started, clock = datetime.now(timezone.utc), time.perf_counter()
+    if junit_path is not None:
+        check_file("--junit", junit_path)
+    if cases_path is not None and baseline_path is None:
+        raise InvalidInputError(f"--cases '{cases_path}' needs --baselines FILE; accepted: the "
+                                "cases' own baseline file (tests/baselines/metrics.json holds "
+                                "the built-in cases)")
+    cases = {c.name: c for c in load_cases(cases_path)} if cases_path is not None else None
     path = Path(baseline_path or DEFAULT_BASELINES)
     baselines = load_baselines(path, required=not update)
     if cache is not None and Path(cache).exists() and not Path(cache).is_dir():
         raise InvalidInputError(f"--cache '{cache}' is a file; accepted: a folder (created if "
                                 "missing)")
-    names = list(methods) if methods else case_names()
-    for name in names:
-        split_case(name)
-    ok = True
+    names = list(methods) if methods else (list(cases) if cases is not None else case_names())
+    _check_names(names, cases)
+    items = [cases[name] for name in names] if cases is not None else names
+    records = {name: dict(cases[name].record) if cases is not None else _case_of(name)
+               for name in names}
+    if workers is None:
+        workers = min(cores(), len(names)) if len(names) > 1 else 0
     refused: list[str] = []
-    checked: dict[str, dict[str, tuple[float, float]]] = {}
+    checks: list[Check] = []
+
+    def emit(check: Check) -> None:
+        for line in check.printed():
+            print(line)
+        checks.append(check)
+
+    specs_of: dict[str, dict[str, tuple[float, float]]] = {}
     if not update:  # baseline problems are reported before any work
         for name in names:
             if name not in baselines:
-                print(f"{name}: FAIL no baseline (run `prtbench regress --update --method "
-                      f"{name}`)")
-                ok = False
+                how = (f"prtbench regress --update --cases {cases_path} --baselines {path} "
+                       f"--method {name}" if cases is not None else
+                       f"prtbench regress --update --method {name}")
+                emit(Check(name, BASELINE_TEST, "fail", f"no baseline in '{path}'",
+                           lines=(f"FAIL no baseline (run `{how}`)",)))
                 continue
-            specs, problems = check_entry(baselines[name], _case_of(name))
-            for line in problems:
-                print(f"{name}: FAIL {line}")
-            ok &= not problems
-            checked[name] = specs
+            specs, problems = check_entry(baselines[name], records[name])
+            if problems:
+                emit(Check(name, BASELINE_TEST, "fail", "; ".join(problems),
+                           lines=tuple(f"FAIL {line}" for line in problems)))
+            specs_of[name] = specs
     with _cache_dir(cache), make_executor(workers=workers) as executor:
-        for index, outcome in executor.map(_measure_safely, names):
+        for index, outcome in executor.map(_measure_safely, items):
             name = names[index]
             result, error, seconds = (None, outcome.error, outcome.seconds) if isinstance(
                 outcome, Lost) else outcome
             if result is None:
-                print(f"{name}: FAIL the case could not run: {error}")
-                ok = False
+                for check in error_checks(name, error, [GATE_TEST, *specs_of.get(name, {})],
+                                          seconds=seconds):
+                    emit(check)
                 refused.append(name)
                 continue
-            print(f"{name}: {_fmt(result.metrics)} on {json.dumps(result.case)} "
-                  f"({seconds:.1f} s with its trivial images)")
-            gate_ok = _report_gate(name, result)
-            ok &= gate_ok
+            gate = gate_check(name, result, seconds)
+            emit(gate)
             if update:
-                if not gate_ok:
+                if not gate.passed:
                     refused.append(name)
                     continue
                 baselines[name] = {"case": result.case, "metrics": {
                     m: {"value": round(float(result.metrics[m]), 5), "tolerance": tol}
                     for m, tol in TOLERANCES.items()}}
-                print(f"{name}: baseline updated "
-                      + ", ".join(f"{m}={result.metrics[m]:.4f}" for m in TOLERANCES))
+                line = "baseline updated " + ", ".join(f"{m}={result.metrics[m]:.4f}"
+                                                        for m in TOLERANCES)
+                emit(Check(name, BASELINE_TEST, "ok", f"{line} (in '{path}')", lines=(line,)))
                 continue
-            ok &= _compare(name, checked.get(name, {}), result)
+            for check in compare_checks(name, specs_of.get(name, {}), result):
+                emit(check)
     if update:
         if refused:
             print(f"refused to update the baselines: {', '.join(refused)} "
                   "do not beat the trivial images (see the FAIL lines); nothing written",
                   file=sys.stderr)
-            return False
-        with atomic_path(path) as tmp:
-            tmp.write_text(json.dumps(baselines, indent=2, sort_keys=True) + "\n")
-        print(f"wrote {path}", file=sys.stderr)
-    return ok
+            checks = [replace(c, message=f"{c.message}: not written, as {', '.join(refused)} "
+                                         "failed") if c.test == BASELINE_TEST and c.passed else c
+                      for c in checks]
+        else:
+            with atomic_path(path) as tmp:
+                tmp.write_text(json.dumps(baselines, indent=2, sort_keys=True) + "\n")
+            print(f"wrote {path}", file=sys.stderr)
+    if junit_path is not None:
+        write_junit(junit_path, checks, seconds=time.perf_counter() - clock, started=started,
+                    properties={"mode": "update" if update else "compare", "profile": PROFILE,
+                                "baselines": str(path),
+                                "cases": str(cases_path) if cases_path is not None else "built-in"})
+        print(f"wrote {junit_path}", file=sys.stderr)
+    return not failed(checks) and not refused
