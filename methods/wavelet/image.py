@@ -38,6 +38,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from methods.wavelet import counts
 from methods.wavelet.gbuffer import pixel_gbuffer
 from methods.wavelet.relight import SELECTIONS, STORAGES, Relighter, check_wavelet_config
 from prtbench.api.cache import cached_arrays, content_key
@@ -51,6 +52,7 @@ from prtbench.api.method import (
     register_method,
     wall_frame_times,
 )
+from prtbench.render import ops
 from prtbench.transport.sh import eval_sh, phong_lobe
 from prtbench.transport.wavelet.cubemap import check_resolution, subsample_pattern
 from prtbench.transport.wavelet.sparse import SparseTransport
@@ -190,6 +192,38 @@ class WaveletImage(Method):
                          "dense_float32_bytes": pixels * lobes * m * 4, "rays": rays,
                          "trace_s": trace_s, "view": _view_dict(view),
                          "width": config.width, "height": config.height})
+
+    @classmethod
+    def op_counts(cls, config: WaveletImageConfig, *, scene_vertices: int,
+                  scene_triangles: int, covered_pixels: int, width: int, height: int,
+                  memory_bytes: int):
+        """The frame is CPU work only (no raster, no upload, no readback): the light's Haar
+        transform and the selection of its k terms (:func:`methods.wavelet.counts.light_counts`;
+        ``lighting='sh'`` uses all 6N² terms of the SH light's cubemap: its scores, no partial
+        sort; either cubemap is per light, not counted), the sparse product over the k
+        selected columns for every covered pixel's transport rows
+        (:func:`~methods.wavelet.counts.sparse_product_counts`, at most min(k, kept) stored
+        entries per row), then per pixel kd/π ⊙ D + ks ⊙ S (3 + 3 RGB madds, the float32 kd,
+        ks and rows read) written into the image at its index.
+
+        The covered pixels are the transport's pixels (the same pixel-centre rays as the
+        geometry mask). The facts do not tell whether the scene has a glossy object, so both
+        lobes are counted for every pixel (the bound: a diffuse scene has one row per pixel,
+        and a glossy scene's diffuse pixels store no specular entries). ``memory_bytes`` is not
+        counted as read: a frame touches only the k selected columns."""
+
+        m = counts.coefficients(config.cubemap)
+        k = m if config.lighting == "sh" else min(config.light_terms, m)
+        selection = "magnitude" if config.lighting == "sh" else config.selection
+        rows = 2 * covered_pixels
+        entries = counts.entries_per_point(k, counts.kept_per_point(config.keep, m))
+        per_pixel = {"madds": 6.0, "fetches": 0.0,
+                     "bytes": float(4 * counts.RGB32_BYTES + 8 + counts.RGB32_BYTES)}
+        return ops.add_counts(
+            counts.light_counts(cubemap=config.cubemap, terms=k, selection=selection),
+            counts.sparse_product_counts(points=rows, terms=k, entries_per_point=entries,
+                                         storage=config.storage),
+            ops.scaled(per_pixel, covered_pixels))
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: WaveletImageConfig, *, width: int,

@@ -38,7 +38,7 @@ from methods.common.atlas.atlas import AtlasMesh, render_gbuffer
 from methods.common.atlas.shading import ShadingInputs
 from methods.common.atlas.texels import NEIGHBOURS, dilate
 from methods.common.materials import check_diffuse_constant_kd
-from methods.wavelet import SHADER_DIR
+from methods.wavelet import SHADER_DIR, counts
 from methods.wavelet.relight import (
     SELECTIONS,
     STORAGES,
@@ -49,7 +49,7 @@ from methods.wavelet.relight import (
 from prtbench.api.config import knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes, Method, Renderer, register_method
-from prtbench.render import gl
+from prtbench.render import gl, ops
 from prtbench.render.raster import clip_planes, kd_per_vertex
 from prtbench.transport.wavelet.sparse import SparseTransport
 from prtbench.transport.wavelet.transport import cached_transport
@@ -201,6 +201,49 @@ class WaveletTexture(Method):
         return Artifact("wavelet-texture", {**transport.arrays(), "texels": texels.astype(np.int64),
                                             **ring_arrays, **atlas.arrays()},
                         {**meta, "dilation_rings": len(rings)})
+
+    @classmethod
+    def op_counts(cls, config: WaveletTextureConfig, *, scene_vertices: int,
+                  scene_triangles: int, covered_pixels: int, width: int, height: int,
+                  memory_bytes: int):
+        """Per frame on the CPU: the light's Haar transform and the selection of its k terms
+        (:func:`methods.wavelet.counts.light_counts`; the lat-long → cubemap resampling is per
+        light, not counted), then every atlas texel of the frame: a covered texel's sparse
+        product over the k selected columns (at most min(k, kept) stored entries,
+        :func:`~methods.wavelet.counts.sparse_product_counts`) written into the RGBA image
+        (its index and 12 bytes), or a dilation ring's texel: per channel up to 8 weighted
+        sources gathered (index, weight and value) and summed. The facts do not tell how many
+        texels the atlas covers or the rings fill (together at most R²), so R² texels are
+        counted at the dearer of the two per-texel costs: the bound. Then the whole R² RGBA32F
+        image is uploaded. wavelet_texture.frag per covered pixel: one bilinear RGBA32F lookup
+        (4 taps of 16 bytes) and kd/π · E (3 madds); 2 varyings interpolated (the set and kd
+        are flat); no depth pre-pass.
+
+        ``texture_resolution`` sets the texels relit and uploaded every frame, so ``ops`` grows
+        with it; ``dilation`` changes the work only within the R² bound. As for
+        ``wavelet-vertex``, ``memory_bytes`` is not counted as read: a frame touches only the
+        k selected columns of the transport."""
+
+        m = counts.coefficients(config.cubemap)
+        k = min(config.light_terms, m)
+        texels = config.texture_resolution**2
+        entries = counts.entries_per_point(k, counts.kept_per_point(config.keep, m))
+        relit = ops.add_counts(
+            ops.scaled(counts.sparse_product_counts(points=texels, terms=k, storage=config.storage,
+                                                    entries_per_point=entries), 1.0 / texels),
+            {"madds": 0.0, "fetches": 0.0, "bytes": 8.0 + 2 * counts.RGB32_BYTES})
+        # Per channel and source: its index, weight and target streamed (8 + 4 + 8 bytes), its
+        # value gathered (1 fetch, 4 bytes), a multiply and the bincount's add; per channel
+        # the texel's index and value written.
+        ring = {"madds": 3.0 * 8 * 2, "fetches": 3.0 * 8, "bytes": 3.0 * (8 * (8 + 4 + 8 + 4) + 12)}
+        per_texel = {key: max(relit[key], ring[key]) for key in relit}
+        per_pixel = {"madds": 3.0, "fetches": 1.0, "bytes": 4.0 * 16}
+        return ops.add_counts(
+            counts.light_counts(cubemap=config.cubemap, terms=k, selection=config.selection),
+            ops.scaled(per_texel, texels), counts.upload_counts(values=4 * texels),
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                              pixels=covered_pixels, varyings=2, vertex_bytes=36),
+            ops.scaled(per_pixel, covered_pixels))
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: WaveletTextureConfig, *, width: int,

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from methods.common.materials import validate_constant_materials
-from methods.wavelet import SHADER_DIR
+from methods.wavelet import SHADER_DIR, counts
 from methods.wavelet.relight import (
     SELECTIONS,
     STORAGES,
@@ -48,6 +48,7 @@ from methods.wavelet.relight import (
 from prtbench.api.config import check_memory, knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, FrameTimes, Method, register_method
+from prtbench.render import ops
 from prtbench.render.raster import RasterRenderer
 from prtbench.transport.wavelet import brdf, haar
 from prtbench.transport.wavelet.brdf import BrdfTable
@@ -197,6 +198,63 @@ class WaveletTP(Method):
                          "table_bytes": int(sum(a.nbytes for a in tables.values())),
                          "dense_float32_bytes": len(positions) * m * 4,
                          "rays": rays, "trace_s": trace_s})
+
+    @classmethod
+    def op_counts(cls, config: WaveletTPConfig, *, scene_vertices: int, scene_triangles: int,
+                  covered_pixels: int, width: int, height: int, memory_bytes: int):
+        """Per frame on the CPU (:meth:`WaveletTPRenderer.radiance`):
+
+        * the light's Haar transform and the selection of its k terms
+          (:func:`methods.wavelet.counts.light_counts`; the lat-long → cubemap resampling is
+          per light, not counted), the truncated light written (6N² RGB float64, k gathered)
+          and its mean pyramid (:func:`~methods.wavelet.counts.mean_pyramid_counts`);
+        * per glossy vertex the eye vector, its normalisation and the mirror direction
+          (3 + 3 + 2 transcendentals + 9 madds), then the glossy factor G: projected
+          (:func:`~methods.wavelet.counts.brdf_projection_counts`: 6N²·S² texel subsamples,
+          float32 Haar, the ``brdf_keep`` largest) or, with ``brdf_table``, looked up (the
+          mirror direction's bin, 20 madds and a division, and ``brdf_keep`` entries gathered:
+          2 fetches, 8 bytes each); each entry's key formed and stored (``BRDF_ENTRY_BYTES``);
+        * two triple products by the tree algorithm, TP(L, V, D) and TP(L, V, G)
+          (:func:`~methods.wavelet.counts.triple_product_counts`: binary searches of the
+          stored V entries among the BRDF's, parent means of the lit wavelets in 1 + 3·level
+          lookups, the three-sibling terms), with at most ``kept`` visibility and ``brdf_keep``
+          BRDF entries per vertex and at most min(k, ·) of them lit; kd ⊙ + ks ⊙ (6 madds);
+        * the (V, 3) float32 radiance uploaded.
+
+        wavelet_tp.vert reads it (3 SSBO loads); interpolated_radiance.frag interpolates 3
+        varyings. The facts do not tell which vertices are glossy, so every vertex is counted
+        glossy (the bound; the method runs on scenes with a glossy object). As for
+        ``wavelet-vertex``, ``memory_bytes`` is not counted as read: the triple products touch
+        only the stored entries they search."""
+
+        n = config.cubemap
+        m = counts.coefficients(n)
+        k = min(config.light_terms, m)
+        v = scene_vertices
+        visibility = counts.kept_per_point(config.keep, m)
+        brdf_keep = min(config.brdf_keep, m)
+        light = ops.add_counts(
+            counts.light_counts(cubemap=n, terms=k, selection=config.selection),
+            {"madds": 0.0, "fetches": float(k), "bytes": float(counts.RGB64_BYTES * (m + k))},
+            counts.mean_pyramid_counts(cubemap=n))
+        if config.brdf_table:
+            glossy = {"madds": 20.0 + ops.TRANSCENDENTAL_MADDS + brdf_keep,
+                      "fetches": 2.0 * brdf_keep, "bytes": 8.0 * brdf_keep}
+        else:
+            glossy = counts.brdf_projection_counts(cubemap=n, samples=config.brdf_samples,
+                                                   keep=brdf_keep)
+        per_vertex = ops.add_counts(
+            {"madds": 3.0 + 3.0 + 2 * ops.TRANSCENDENTAL_MADDS + 9.0 + brdf_keep + 6.0,
+             "fetches": 0.0, "bytes": float(BRDF_ENTRY_BYTES * brdf_keep)},
+            glossy, {"madds": 0.0, "fetches": 3.0, "bytes": 12.0})  # + the shader's loads
+        product = counts.triple_product_counts(points=v, cubemap=n, terms=k,
+                                               visibility_entries=visibility,
+                                               brdf_entries=brdf_keep)
+        return ops.add_counts(
+            light, ops.scaled(per_vertex, v), ops.scaled(product, 2),
+            counts.upload_counts(values=3 * v),
+            ops.raster_counts(vertices=v, triangles=scene_triangles, pixels=covered_pixels,
+                              varyings=3, vertex_bytes=12))
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: WaveletTPConfig, *, width: int,

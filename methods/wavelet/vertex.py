@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from methods.common.materials import check_diffuse_constant_kd
-from methods.wavelet import SHADER_DIR
+from methods.wavelet import SHADER_DIR, counts
 from methods.wavelet.compressed import (
     CompressedWaveletVertexRenderer,
     check_compress,
@@ -45,6 +45,7 @@ from methods.wavelet.relight import (
 )
 from prtbench.api.config import knob
 from prtbench.api.method import Artifact, FrameTimes, Method, register_method
+from prtbench.render import ops
 from prtbench.render.raster import RasterRenderer
 from prtbench.transport.compress import knobs as compress_knobs
 from prtbench.transport.wavelet.sparse import SparseTransport
@@ -160,6 +161,49 @@ class WaveletVertex(Method):
         meta.update(fit, transport_stored_bytes=transport.nbytes,
                     stored_bytes=int(sum(a.nbytes for a in arrays.values())))
         return Artifact("wavelet-vertex", arrays, meta)
+
+    @classmethod
+    def op_counts(cls, config: WaveletVertexConfig, *, scene_vertices: int,
+                  scene_triangles: int, covered_pixels: int, width: int, height: int,
+                  memory_bytes: int):
+        """Per frame on the CPU: the light's Haar transform and the selection of its k terms
+        (:func:`methods.wavelet.counts.light_counts`; the lat-long → cubemap resampling is per
+        light, not counted), then the sparse product over the k selected columns
+        (:func:`~methods.wavelet.counts.sparse_product_counts`, at most min(k, kept) stored
+        entries per vertex: the facts do not tell how many the columns hold) and the upload of
+        the (V, 3) float32 radiance. wavelet_vertex.vert per vertex: 3 SSBO loads and kd/π · E
+        (3 madds); interpolated_radiance.frag interpolates 3 varyings.
+
+        Compressed (``compress``): after the same Haar and selection, the projection of the k
+        terms onto every cluster's mean and n′ vectors (K·(1 + n′)·k RGB madds, the float32
+        columns gathered), the (K, 1 + n′, 3) table uploaded; per vertex cpca.glsl reads its
+        cluster id (K > 1), n′ weights and 1 + n′ RGB table entries (n′ RGB madds).
+
+        The whole resident transport is not read: a frame touches only the k selected
+        columns, so ``memory_bytes`` is not counted as bytes read."""
+
+        k = min(config.light_terms, counts.coefficients(config.cubemap))
+        frame = counts.light_counts(cubemap=config.cubemap, terms=k, selection=config.selection)
+        form = compress_knobs.resolve(config)
+        if form is None:
+            kept = counts.kept_per_point(config.keep, counts.coefficients(config.cubemap))
+            cpu = counts.sparse_product_counts(
+                points=scene_vertices, terms=k, storage=config.storage,
+                entries_per_point=counts.entries_per_point(k, kept))
+            upload = counts.upload_counts(values=3 * scene_vertices)
+            per_vertex = {"madds": 3.0, "fetches": 3.0, "bytes": 12.0}
+        else:
+            rows, n = form.clusters * (1 + form.pca_vectors), form.pca_vectors
+            cpu = {"madds": 3.0 * rows * k, "fetches": float(rows * k),
+                   "bytes": float(4 * rows * k)}
+            upload = counts.upload_counts(values=3 * rows)
+            fetches = float((form.clusters > 1) + n + 3 * (1 + n))
+            per_vertex = {"madds": 3.0 * n + 3.0, "fetches": fetches, "bytes": 4.0 * fetches}
+        return ops.add_counts(
+            frame, cpu, upload,
+            ops.raster_counts(vertices=scene_vertices, triangles=scene_triangles,
+                              pixels=covered_pixels, varyings=3, vertex_bytes=24),
+            ops.scaled(per_vertex, scene_vertices))
 
     @classmethod
     def renderer(cls, scene, artifact: Artifact, config: WaveletVertexConfig, *, width: int,

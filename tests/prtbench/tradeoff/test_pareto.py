@@ -192,6 +192,10 @@ MAIN_KNOBS = {
     "data-driven": ("basis", [4, 16, 64]),
     "learnt": ("hidden", [16, 32, 64, 128]),
     "learnt-sdf": ("hidden", [16, 32, 64, 128]),
+    "wavelet-vertex": ("light_terms", [16, 64, 256, 1024]),
+    "wavelet-texture": ("light_terms", [16, 64, 256, 1024]),
+    "wavelet-tp": ("light_terms", [16, 64, 256, 1024]),
+    "wavelet-image": ("light_terms", [16, 64, 256, 1024]),
 }
 #: Knobs that change what is resident but not the per-pixel work (ops must not shrink).
 RESIDENT_KNOBS = {"irradiance-volume": ("resolution", [4, 8, 16]),
