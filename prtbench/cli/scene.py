@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from prtbench.api.config import parse_overrides
 from prtbench.scene.files import is_scene_path, read_scene_file
 from prtbench.scene.registry import get_scene
@@ -24,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
         scene, report = read_scene_file(args.path, variant=args.variant, **params)
     else:  # a built-in scene's name: the same summary, without the import's repairs
         scene, report = get_scene(args.path, variant=args.variant, **params), None
-    lo, hi = scene.bounds()
+    lo, hi = scene.world_bounds()  # the user's units (rendered in the canonical frame)
 
     def value(v) -> str:
         return v.name if hasattr(v, "image") else (
@@ -37,7 +39,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"  {len(scene.objects)} objects, {scene.n_triangles} triangles, "
           f"{scene.n_vertices} vertices")
     print(f"  bounds ({', '.join(f'{c:.4g}' for c in lo)}) .. ({', '.join(f'{c:.4g}' for c in hi)})"
-          f", diagonal {scene.diagonal():.4g}")
+          f", diagonal {float(np.linalg.norm(hi - lo)):.4g}")
+    frame = scene.world_from_canonical
+    if not frame.is_identity:
+        print(f"  rendered in the canonical frame: world = {frame.scale:.6g} · p + "
+              f"({', '.join(f'{c:.6g}' for c in frame.offset)})")
     views = (f"{report.cameras} from the file" if report and report.cameras
              else f"{len(scene.trajectory)} views")
     print(f"  views: {views}; default light {scene.default_light}")

@@ -1,7 +1,9 @@
 """Scenes: geometry, materials, cameras and the scene registry.
 
 Conventions (DESIGN.md §3): right-handed, +Y up, cameras look down their -Z (OpenGL). Objects
-are stored in world space (builders apply their ``world_from_object`` transforms when building).
+are stored in the scene's canonical frame (:mod:`prtbench.scene.frame`; builders apply their
+``world_from_object`` transforms when building, and ``Scene.world_from_canonical`` says where
+the user's world is), which is what every method and the reference render.
 Surfaces are one-sided: the front side is the side the vertex normals point to, and a surface
 seen from behind is black in every renderer and in the reference, so thin parts (leaves, cloth)
 are modelled as closed or two-layer geometry.
@@ -22,6 +24,7 @@ import numpy as np
 
 from prtbench.api.cache import content_key
 from prtbench.api.errors import InvalidInputError
+from prtbench.scene.frame import IDENTITY, Similarity
 
 Color = tuple[float, float, float]
 
@@ -311,6 +314,9 @@ class Scene:
         For continuous (SDF) scenes: the signed distance function the scene is defined by
         (see :mod:`prtbench.transport.sdf`); ``objects`` then hold its fine marching-cubes mesh, which
         the reference, masks and mesh-based methods use.
+    world_from_canonical : Similarity
+        Maps the canonical frame the objects, views and SDF are stored in to the user's world
+        (:mod:`prtbench.scene.frame`); the identity for a scene left as built.
     """
 
     name: str
@@ -322,6 +328,7 @@ class Scene:
     params: dict[str, Any] = field(default_factory=dict)
     substitution: str = ""
     sdf: Any = None
+    world_from_canonical: Similarity = IDENTITY
 
     @property
     def n_triangles(self) -> int:
@@ -338,6 +345,10 @@ class Scene:
     def diagonal(self) -> float:
         lo, hi = self.bounds()
         return float(np.linalg.norm(hi - lo))
+
+    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds (lo, hi) in the user's world (:attr:`world_from_canonical`), (3,) float64."""
+        return tuple(self.world_from_canonical.apply(b) for b in self.bounds())
 
     def merged(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """All objects in one mesh.

@@ -8,8 +8,9 @@ one place, before anything is built: the type, finiteness, the range, and for pa
 grow the geometry an upper bound derived from memory (a value whose estimate exceeds the
 machine's memory is refused naming the bytes, instead of failing deep inside numpy).
 
-After a scene is built, :func:`check_extent` refuses scenes whose size makes float32 ray
-offsets meaningless (see :data:`RAY_EPSILON`).
+After a scene is built, :func:`check_extent` refuses what no frame can render: bounds with
+non-finite coordinates or zero extent. Any other size and position is accepted: the scene is
+then rendered in its canonical frame (:mod:`prtbench.scene.frame`).
 """
 
 from __future__ import annotations
@@ -25,20 +26,15 @@ from prtbench.api import config as config_mod
 from prtbench.api.config import SEED_HIGH as CONFIG_SEED_HIGH
 from prtbench.api.config import format_bytes
 from prtbench.api.errors import InvalidInputError
+from prtbench.scene.frame import diagonal
 
 #: Resident bytes one triangle costs through a run. Measured (ru_maxrss) on a 2M-triangle
 #: plane: 117 B/triangle for the build, 231 with the Embree tracer, 320 with the Mitsuba
 #: scene; rounded up to leave room for a method's per-vertex transfer.
 BYTES_PER_TRIANGLE = 512
 
-#: Mitsuba 3 offsets every secondary ray by ``(1 + max|p|) · RAY_EPSILON`` (float32
-#: ``RayEpsilon`` = 1500 · 2⁻²⁴), an absolute distance: below a scene size of about 1 cm
-#: (around the origin) the offset is no longer small against the geometry and shadows vanish.
-RAY_EPSILON = 1500 * 2.0 ** -24
-#: The reference offset must stay below this fraction of the scene's bounds diagonal.
-MAX_OFFSET_FRACTION = 0.01
-#: Largest accepted bounds diagonal: squared distances and areas then stay far inside float32
-#: (1e12 ≪ 3.4e38) and the float32 spacing of a coordinate stays ~6e-8 of the scene.
+#: Largest length a scene builder's parameter accepts (:func:`length`). Scenes themselves have
+#: no size limit (they are rendered in their canonical frame); this bounds the builders' inputs.
 MAX_DIAGONAL = 1e6
 #: Seeds go to numpy, torch and Mitsuba; Mitsuba's are uint32.
 SEED_HIGH = CONFIG_SEED_HIGH
@@ -208,42 +204,47 @@ def check_params(scene: str, specs: Mapping[str, SceneParam], values: Mapping[st
             for key, value in values.items()}
 
 
-def check_extent(scene: Any, params: Mapping[str, Any], *, scale_hint: bool = False) -> None:
-    """Refuse a built scene too small or too large for float32 ray offsets.
+def check_extent(name: str, lo: np.ndarray, hi: np.ndarray, params: Mapping[str, Any]) -> None:
+    """Refuse world bounds that no frame can render: non-finite coordinates or zero extent.
+
+    Every other size and position is accepted: the scene is rendered in its canonical frame
+    (:mod:`prtbench.scene.frame`), which is fitted from these bounds in float64.
 
     Parameters
     ----------
-    scene : Scene
+    name : str
+        The scene (named in the message).
+    lo, hi : ndarray, shape (3,)
+        The scene's bounds in the user's world, float64.
     params : mapping
         The parameters it was built with (named in the message).
-    scale_hint : bool
-        The scene takes a ``scale`` parameter (scene files): the message then says which
-        ``--scene-param scale=`` brings the diagonal to about 2.
 
     Raises
     ------
     InvalidInputError
-        Non-finite bounds, a bounds diagonal above :data:`MAX_DIAGONAL`, or one so small that
-        Mitsuba's ray offset ``(1 + max|p|) · RAY_EPSILON`` exceeds
-        :data:`MAX_OFFSET_FRACTION` of it; the message names the scene's parameters.
+        One line naming the scene, its parameters, the bounds and what is accepted: non-finite
+        coordinates, or a bounds diagonal that is zero (every vertex at one point) or too small
+        for float64 to scale (below its smallest normal number, 2.2e-308).
     """
-    if not scene.objects or scene.n_triangles == 0:
-        raise InvalidInputError(f"scene '{scene.name}' has no triangles")
-    lo, hi = scene.bounds()
-    diag = float(np.linalg.norm(hi - lo))
-    reach = float(np.max(np.abs(np.concatenate([lo, hi])))) if np.all(np.isfinite([lo, hi])) \
-        else math.inf
-    offset = (1.0 + reach) * RAY_EPSILON
-    if math.isfinite(diag) and diag <= MAX_DIAGONAL and offset <= MAX_OFFSET_FRACTION * diag:
-        return
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     shown = ", ".join(f"{k}={v!r}" for k, v in params.items()) or "defaults"
-    low = offset / MAX_OFFSET_FRACTION
-    hint = ""
-    if scale_hint and math.isfinite(diag) and diag > 0:
-        scale = float(params.get("scale", 1.0)) * 2.0 / diag
-        hint = f"; hint: --scene-param scale={scale:.3g} makes it about 2"
-    raise InvalidInputError(
-        f"scene '{scene.name}' ({shown}) has bounds diagonal {diag:.3g}; accepted: "
-        f"{low:.3g}..{MAX_DIAGONAL:g} (Mitsuba offsets float32 rays by (1 + max|p|) · "
-        f"{RAY_EPSILON:.3g} = {offset:.3g} here, which must stay under "
-        f"{MAX_OFFSET_FRACTION:.0%} of the diagonal){hint}")
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise InvalidInputError(
+            f"scene '{name}' ({shown}) has non-finite coordinates (bounds {_triple(lo)} .. "
+            f"{_triple(hi)}); accepted: finite coordinates of any size")
+    diag = diagonal(lo, hi)
+    tiny = float(np.finfo(np.float64).tiny)
+    if not diag >= tiny:
+        where = (f"every vertex at {_triple(lo)}" if diag == 0.0
+                 else f"below float64's smallest normal number {tiny:.3g}")
+        raise InvalidInputError(
+            f"scene '{name}' ({shown}) has zero extent (bounds diagonal {diag:.3g}: {where}); "
+            "accepted: a bounds diagonal > 0 (of any size)")
+    if not math.isfinite(diag):
+        raise InvalidInputError(
+            f"scene '{name}' ({shown}) has bounds diagonal {diag:.3g} (bounds {_triple(lo)} .. "
+            f"{_triple(hi)}); accepted: a finite bounds diagonal")
+
+
+def _triple(v: np.ndarray) -> str:
+    return "(" + ", ".join(f"{c:.6g}" for c in v) + ")"

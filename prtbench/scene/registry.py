@@ -2,12 +2,14 @@
 
 Builders register with :func:`register_scene` (the built-in ones are declared lazily in
 ``pyproject.toml``, group ``prtbench.scenes``); :func:`get_scene` types and checks the builder's
-parameters, builds the scene and checks its extent. A name that is a path to an asset file is
-imported from that file (:mod:`prtbench.scene.files`).
+parameters, builds the scene, checks its extent and puts it in its canonical frame
+(:mod:`prtbench.scene.frame`). A name that is a path to an asset file is imported from that
+file (:mod:`prtbench.scene.files`), in the canonical frame too.
 """
 
 from __future__ import annotations
 
+import difflib
 import inspect
 from collections.abc import Callable
 from typing import Any
@@ -15,6 +17,7 @@ from typing import Any
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.registry import Registry
 from prtbench.scene.files import build_file_scene, is_scene_path
+from prtbench.scene.frame import canonical_from_world, is_conditioned, moved_scene
 from prtbench.scene.model import VARIANTS, Scene
 from prtbench.scene.params import check_extent, check_params
 
@@ -53,6 +56,11 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
     A ``name`` ending in .glb/.gltf/.obj/.ply/.off/.stl (or a path to an existing file) is
     imported from that file instead (:mod:`prtbench.scene.files`; params ``scale``, ``up``,
     ``ground``).
+
+    A built scene whose bounds are well conditioned (:func:`prtbench.scene.frame.is_conditioned`:
+    every built-in scene at its default parameters) is returned as built; any other is moved
+    to the canonical frame (centred, bounds diagonal 2), ``world_from_canonical`` recording
+    where it was built.
     """
 
     if is_scene_path(name):
@@ -64,8 +72,11 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
     accepted = [p for p in signature if p != "variant"]
     for key in params:
         if key not in accepted:
-            raise InvalidInputError(
-                f"scene '{name}' has no parameter '{key}'; accepted: {', '.join(accepted) or '(none)'}")
+            # The did-you-mean of prtbench.api.errors.UnknownNameError, in this message's words.
+            close = difflib.get_close_matches(key, accepted, n=1, cutoff=0.5)
+            hint = f"; did you mean '{close[0]}'?" if close else ";"
+            raise InvalidInputError(f"scene '{name}' has no parameter '{key}'{hint} accepted: "
+                                    f"{', '.join(accepted) or '(none)'}")
 
     # Command-line values arrive as strings: give them the declared type (else the type of the
     # builder's default), so `--scene-param ground_subdivisions=64` and a sweep's int 64 build
@@ -76,8 +87,13 @@ def get_scene(name: str, *, variant: str = "diffuse", **params: Any) -> Scene:
              for key, value in params.items()}
     typed = check_params(name, specs, typed)
     scene = builder(variant=variant, **typed)
-    check_extent(scene, typed)
-    return scene
+    if not scene.objects or scene.n_triangles == 0:
+        raise InvalidInputError(f"scene '{scene.name}' has no triangles")
+    lo, hi = scene.bounds()
+    check_extent(scene.name, lo, hi, typed)
+    if is_conditioned(lo, hi):  # bit-identical to the scene as built (caches, golden metrics)
+        return scene
+    return moved_scene(scene, canonical_from_world(lo, hi))
 
 
 def _typed_param(scene: str, key: str, value: Any, default: Any) -> Any:

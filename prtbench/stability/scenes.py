@@ -2,9 +2,11 @@
 
 The transformed scene keeps the base scene's name and records the case in ``params`` (which
 the runner stores with every row and which enters no cache key: the content hash covers the
-geometry and materials themselves). Built scenes pass the same extent check as any built-in
-or file scene (:func:`prtbench.scene.params.check_extent`), so a scale whose float32 ray
-offsets are meaningless is refused with the same one-line message a user would get.
+geometry and materials themselves). A scale or translation case moves the base scene in the
+user's world, in float64, and puts it back in a canonical frame as any imported scene
+(:mod:`prtbench.scene.frame`): the base scene's own, since it is the same shape. So its image
+must match the moderate case's; only what is physically undefined (non-finite coordinates,
+zero extent: :func:`prtbench.scene.params.check_extent`) is refused.
 """
 
 from __future__ import annotations
@@ -15,10 +17,10 @@ import math
 import numpy as np
 
 from prtbench.api.errors import InvalidInputError
+from prtbench.scene.frame import bounds_of, fit_bounds, with_frame
 from prtbench.scene.model import Material, Scene, SceneObject, Trajectory, TriangleMesh, View
 from prtbench.scene.params import check_extent
 from prtbench.stability.lights import LIGHTS
-from prtbench.transport.sdf import SdfSurface
 from prtbench.transport.sdf.nodes import SdfNode, glsl_float
 
 #: Height of the grazing camera above the ground, as a fraction of the scene's diagonal.
@@ -33,24 +35,35 @@ def _material(material: Material, shininess: float | None) -> Material:
     return dataclasses.replace(material, shininess=shininess)  # validated: [0, 1e4]
 
 
-def _transform_mesh(mesh: TriangleMesh, scale: float, offset: np.ndarray) -> TriangleMesh:
-    # float64 until the mesh casts to float32: that cast is the precision loss measured.
-    positions = mesh.positions.astype(np.float64) * scale + offset
-    return TriangleMesh(positions, mesh.faces, mesh.normals, mesh.uvs)
+def _moved(base: Scene, scale: float, translate: np.ndarray, shown: dict) -> Scene:
+    """``base`` scaled about the world origin by ``scale`` and moved by ``translate``, then put
+    back in the base's canonical frame.
 
+    The moved world is computed in float64 from the canonical float32 positions (as a file's
+    float64 vertices are read), and the frame is fitted to its float64 bounds before the cast:
+    a float32 cast of the world itself would lose the geometry 10⁷ from the origin.
+    """
 
-def _transform_view(view: View, scale: float, offset: np.ndarray) -> View:
-    eye = tuple(float(c) for c in np.asarray(view.eye, dtype=np.float64) * scale + offset)
-    target = tuple(float(c) for c in np.asarray(view.target, dtype=np.float64) * scale + offset)
-    return dataclasses.replace(view, eye=eye, target=target)
+    def world(points) -> np.ndarray:
+        with np.errstate(over="ignore", invalid="ignore"):
+            return scale * base.world_from_canonical.apply(points) + translate
 
-
-def _transform_sdf(sdf, scale: float, offset: np.ndarray):
-    root = sdf.root.scale(scale) if scale != 1.0 else sdf.root
-    if np.any(offset):
-        root = root.translate(*(float(c) for c in offset))
-    lo, hi = (np.asarray(b, dtype=np.float64) * scale + offset for b in sdf.bounds)
-    return SdfSurface(root, (tuple(lo), tuple(hi)), sdf.materials, sdf.name)
+    positions = [world(o.mesh.positions) for o in base.objects]
+    lo, hi = bounds_of(positions)
+    check_extent(base.name, lo, hi, shown)
+    canonical = fit_bounds(lo, hi, *base.bounds())
+    objects = [SceneObject(o.name, TriangleMesh(canonical.apply(p), o.mesh.faces, o.mesh.normals,
+                                                o.mesh.uvs), o.material)
+               for o, p in zip(base.objects, positions)]
+    views = []
+    for view in base.trajectory.views:
+        eye, target = canonical.apply(world(np.asarray([view.eye, view.target])))
+        views.append(dataclasses.replace(view, eye=tuple(map(float, eye)),
+                                         target=tuple(map(float, target))))
+    # An SDF keeps its tree: the frame is the base's, so its canonical surface is the base's
+    # own (the canonical mesh above equals the base's up to float64 rounding).
+    return dataclasses.replace(base, objects=objects, trajectory=Trajectory(tuple(views)),
+                               world_from_canonical=canonical.inverse())
 
 
 class DistanceScale(SdfNode):
@@ -182,21 +195,21 @@ def case_scene(base: Scene, case) -> Scene:
     Raises
     ------
     InvalidInputError
-        A Phong exponent outside the material's range, or a transformed scene outside the
-        extents float32 ray offsets allow (:func:`prtbench.scene.params.check_extent`).
+        A Phong exponent outside the material's range, or a scale or translation that leaves
+        non-finite coordinates or zero extent (:func:`prtbench.scene.params.check_extent`).
     """
 
-    offset = TRANSLATE_AXIS * case.translate
     scale = float(case.scale)
-    objects = []
-    for obj in base.objects:
-        mesh = obj.mesh
-        if scale != 1.0 or case.translate:
-            mesh = _transform_mesh(mesh, scale, offset)
-        objects.append(SceneObject(obj.name, mesh, _material(obj.material, case.shininess)))
+    world_from_canonical = base.world_from_canonical
+    if scale != 1.0 or case.translate:
+        shown = {k: v for k, v in base.params.items()
+                 if k not in ("stability_case", "world_from_canonical")}
+        base = _moved(base, scale, TRANSLATE_AXIS * float(case.translate),
+                      {**shown, "scale": scale, "translate": case.translate})
+        world_from_canonical = base.world_from_canonical
+    objects = [SceneObject(o.name, o.mesh, _material(o.material, case.shininess))
+               for o in base.objects]
     sdf = base.sdf
-    if sdf is not None and (scale != 1.0 or case.translate):
-        sdf = _transform_sdf(sdf, scale, offset)
     if sdf is not None and case.distance_factor != 1.0:
         sdf = dataclasses.replace(sdf, root=DistanceScale(sdf.root, case.distance_factor))
     elif case.distance_factor != 1.0:
@@ -205,8 +218,7 @@ def case_scene(base: Scene, case) -> Scene:
     if sdf is not None and case.shininess is not None:
         sdf = dataclasses.replace(sdf, materials=tuple(_material(m, case.shininess)
                                                        for m in sdf.materials))
-    trajectory = Trajectory(tuple(_transform_view(v, scale, offset)
-                                  for v in base.trajectory.views))
+    trajectory = base.trajectory
     if case.geometry in ("flipped-normals", "solid-block"):
         names = [o.name for o in objects]
         g = names.index("ground") if "ground" in names else -1  # a file may have no ground
@@ -232,12 +244,10 @@ def case_scene(base: Scene, case) -> Scene:
                                     "edge-on, flipped-normals, degenerate, t-junction, "
                                     "coincident, solid-block")
     exposure = base.exposure * (LIGHTS[case.light].exposure_factor if case.light else 1.0)
-    params = {**base.params, "stability_case": case.name}
+    params = with_frame({**base.params, "stability_case": case.name}, world_from_canonical)
     scene = dataclasses.replace(base, objects=objects, sdf=sdf, trajectory=trajectory,
                                 exposure=exposure, params=params)
     if case.geometry in ("grazing", "edge-on"):
         views = _grazing(scene) if case.geometry == "grazing" else _edge_on(scene)
         scene = dataclasses.replace(scene, trajectory=views)
-    check_extent(scene, {k: v for k, v in params.items() if k != "stability_case"} | {
-        "scale": scale, "translate": case.translate})
     return scene

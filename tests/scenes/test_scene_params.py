@@ -80,16 +80,18 @@ def test_lengths_must_be_positive_finite_numbers(value):
         get_scene("plane", size=value)
 
 
-def test_extent_refuses_scenes_far_from_the_origin_relative_to_their_size():
-    """Mitsuba's offset grows with max|p|: a small scene far away loses its shadows too."""
+def test_scenes_far_from_the_origin_relative_to_their_size_are_accepted_and_conditioned():
+    """Mitsuba's offset grows with max|p|: a small scene far away would lose its shadows as
+    built, so it is accepted and rendered in the canonical frame instead (DESIGN.md §22)."""
+    from prtbench.scene.frame import is_conditioned
     from prtbench.scene.geometry import grid_plane
-    from prtbench.scene.model import Material, Scene, SceneObject
 
-    def plane_at(x: float, size: float) -> Scene:
-        mesh = grid_plane(size, 1, center=(x, 0.0, 0.0))
-        return Scene("moved", [SceneObject("ground", mesh, Material())])
+    def plane_at(x: float, size: float):
+        positions = grid_plane(size, 1, center=(x, 0.0, 0.0)).positions
+        return positions.min(axis=0), positions.max(axis=0)
 
-    P.check_extent(plane_at(0.0, 1.0), {})
-    P.check_extent(plane_at(100.0, 2.0), {})  # offset 9e-3 < 1 % of 2.8
-    with pytest.raises(InvalidInputError, match="bounds diagonal 0.141"):
-        P.check_extent(plane_at(1000.0, 0.1), {"x": 1000.0})  # offset 0.09 > 1 % of 0.14
+    for x, size in ((0.0, 1.0), (100.0, 2.0), (1000.0, 0.1)):
+        P.check_extent("moved", *plane_at(x, size), {"x": x})
+    assert is_conditioned(*plane_at(0.0, 1.0))
+    assert not is_conditioned(*plane_at(100.0, 2.0))  # offset 9e-3 > 0.1 % of 2.8
+    assert not is_conditioned(*plane_at(1000.0, 0.1))

@@ -10,7 +10,13 @@ Import
   node's ``world_from_object`` transform (normals by its inverse transpose; a mirroring
   transform flips the winding so faces stay front-facing).
 - ``up=z`` turns +Z-up files into our +Y up (x, y, z) → (x, z, −y); ``scale`` multiplies
-  positions after that. Nothing else is normalised: file units are scene units.
+  positions after that: it states the file's unit (``scale=0.001`` for millimetres in metres),
+  which ``Scene.world_from_canonical`` and the stored rows record.
+- Canonical frame (DESIGN.md §22, :mod:`prtbench.scene.frame`): the world positions are read
+  and transformed in float64, then the scene (its ground and views too) is centred and scaled
+  to a bounds diagonal of 2 before it is cast to float32. The image therefore depends neither
+  on ``scale`` nor on where the file places the scene: millimetres or kilometres, at the
+  origin or 10⁷ from it. Only non-finite coordinates and zero extent are refused.
 - Repairs, counted in :class:`ImportReport`: degenerate faces (repeated indices or zero area)
   and duplicate faces are removed, unused vertices dropped, vertex normals computed
   (angle-weighted) where the file has none. Non-manifold edges (shared by more than two
@@ -56,6 +62,8 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from prtbench.api import config
 from prtbench.api.cache import content_key
 from prtbench.api.errors import InvalidInputError
@@ -63,8 +71,9 @@ from prtbench.scene import params as P
 from prtbench.scene.files.materials import DEFAULT_KD, GLOSSY_DEFAULT, phong_exponent
 from prtbench.scene.files.reader import load, objects_of, sidecars
 from prtbench.scene.files.report import ImportReport
-from prtbench.scene.files.views import file_views, ground, orbit
-from prtbench.scene.model import VARIANTS, Scene, Trajectory, objects_bounds
+from prtbench.scene.files.views import file_views, ground, ground_bounds, orbit
+from prtbench.scene.frame import bounds_of, canonical_from_world, with_frame
+from prtbench.scene.model import VARIANTS, Scene, Trajectory
 from prtbench.scene.params import check_extent, check_params
 
 __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
@@ -74,7 +83,8 @@ __all__ = ["SUFFIXES", "PARAMS", "DEFAULT_KD", "GLOSSY_DEFAULT", "ImportReport",
 #: File suffixes read as scenes (lower case).
 SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off", ".stl")
 #: Bump when the import changes what a file builds (invalidates every file scene's caches).
-FILE_SCENE_VERSION = 1
+#: 2: the canonical frame.
+FILE_SCENE_VERSION = 2
 #: The import parameters (``--scene-param``), checked by :func:`prtbench.scene.params.check_params`.
 PARAMS = {"scale": P.length(low=0.0, high=1e12), "up": P.choice("y", "z"), "ground": P.flag()}
 DEFAULTS = {"scale": 1.0, "up": "y", "ground": False}
@@ -155,8 +165,8 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
         Missing file, unsupported suffix, unknown parameter, a file trimesh cannot parse, a
         glTF whose buffer or image is missing, no triangles, NaN/Inf positions, more
         triangles than this machine's memory holds through a run (:func:`check_triangles`),
-        or a bounds diagonal after ``scale`` outside what float32 ray offsets allow
-        (:func:`prtbench.scene.params.check_extent`, with a ``scale=`` hint).
+        or bounds with non-finite coordinates or zero extent
+        (:func:`prtbench.scene.params.check_extent`).
     """
 
     files = scene_files(path)
@@ -191,18 +201,27 @@ def read_scene_file(path: str, *, variant: str = "diffuse", **params: Any):
         objects += found
         views = views or file_views(tm_scene, values)
     report.sha256 = digest.hexdigest()
-    check_triangles(label, sum(o.mesh.n_triangles for o in objects))
-    lo, hi = objects_bounds(objects)
-    if values["ground"]:
-        objects.append(ground(lo, hi, variant))
-    report.cameras = len(views)
-    if not views:
-        views = orbit(lo, hi)
+    check_triangles(label, sum(len(o.faces) for o in objects))
     key = content_key("scene-file", FILE_SCENE_VERSION, report.sha256, values)
     name = f"{'+'.join(f.stem for f in files)}-{key[:10]}"
-    scene = Scene(name, objects, variant=variant, default_light="sky",
+    # Bounds in the user's world, float64: of the objects, and with the ground under them.
+    lo, hi = bounds_of([o.positions for o in objects])
+    every_lo, every_hi = lo, hi
+    if values["ground"]:
+        ground_lo, ground_hi = ground_bounds(lo, hi)
+        every_lo, every_hi = np.minimum(lo, ground_lo), np.maximum(hi, ground_hi)
+    check_extent(name, every_lo, every_hi, {"file": str(path), **values})
+    canonical = canonical_from_world(every_lo, every_hi)
+    placed = [o.placed(canonical) for o in objects]
+    if values["ground"]:  # the ground commutes with the frame: built from canonical bounds
+        placed.append(ground(canonical.apply(lo), canonical.apply(hi), variant))
+    report.cameras = len(views)
+    views = ([canonical.view(v) for v in views] if views
+             else orbit(canonical.apply(lo), canonical.apply(hi)))
+    world_from_canonical = canonical.inverse()
+    params = {"file": "+".join(f.name for f in files), "file_sha256": report.sha256, **values}
+    scene = Scene(name, placed, variant=variant, default_light="sky",
                   trajectory=Trajectory(tuple(views)), exposure=0.7,
-                  params={"file": "+".join(f.name for f in files), "file_sha256": report.sha256,
-                          **values})
-    check_extent(scene, {"file": str(path), **values}, scale_hint=True)
+                  params=with_frame(params, world_from_canonical),
+                  world_from_canonical=world_from_canonical)
     return scene, report

@@ -1,4 +1,9 @@
-"""Reading an asset file with trimesh: sidecar files, objects in world space, repairs."""
+"""Reading an asset file with trimesh: sidecar files, objects in world space, repairs.
+
+Objects come out in the user's world units and in float64 (:class:`WorldObject`): the scene's
+canonical frame is fitted to them before anything is cast to float32
+(:mod:`prtbench.scene.frame`), so a file placed 10⁷ from the origin keeps its geometry.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ import io
 import json
 import struct
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
@@ -17,8 +23,39 @@ from PIL import Image
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene.files.materials import material_of
 from prtbench.scene.files.report import ImportReport
+from prtbench.scene.frame import Similarity
 from prtbench.scene.geometry import degenerate_faces, remove_duplicate_faces
-from prtbench.scene.model import SceneObject, TriangleMesh
+from prtbench.scene.model import Material, SceneObject, TriangleMesh
+
+
+@dataclass(eq=False)
+class WorldObject:
+    """An imported, repaired object in the user's world, before the canonical frame.
+
+    Attributes
+    ----------
+    name : str
+    positions : ndarray, shape (V, 3), float64
+        World positions (node transform, ``up`` and ``scale`` applied).
+    faces : ndarray, shape (F, 3), int
+    normals : ndarray, shape (V, 3), float64
+        Unit normals (a similarity changes none).
+    uvs : ndarray, shape (V, 2), or None
+    material : Material
+    """
+
+    name: str
+    positions: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray | None
+    material: Material
+
+    def placed(self, canonical_from_world: Similarity) -> SceneObject:
+        """The scene object, its positions moved to the canonical frame, then cast to float32."""
+        mesh = TriangleMesh(canonical_from_world.apply(self.positions), self.faces, self.normals,
+                            self.uvs)
+        return SceneObject(self.name, mesh, self.material)
 
 
 def import_basis(values: dict[str, Any]) -> np.ndarray:
@@ -167,7 +204,15 @@ def load(file: Path, label: str):
 
 
 def objects_of(tm_scene, values: dict[str, Any], variant: str, label: str,
-             report: ImportReport) -> list:
+               report: ImportReport) -> list[WorldObject]:
+    """Every mesh node of ``tm_scene`` as a repaired :class:`WorldObject` (float64 world).
+
+    Raises
+    ------
+    InvalidInputError
+        NaN/Inf vertex positions, coordinates that overflow float64 once transformed, or no
+        triangles at all.
+    """
     import trimesh
 
     basis = import_basis(values)
@@ -188,6 +233,13 @@ def objects_of(tm_scene, values: dict[str, Any], variant: str, label: str,
         normals = np.asarray(geom.vertex_normals, dtype=np.float64) if given else None
         uvs = getattr(geom.visual, "uv", None)
         uvs = None if uvs is None or len(uvs) != len(positions) else np.asarray(uvs, float)
+        with np.errstate(over="ignore", invalid="ignore"):
+            moved = positions @ world[:3, :3].T + world[:3, 3]
+        if not np.all(np.isfinite(moved)):
+            raise InvalidInputError(
+                f"{label}: object '{node}' has non-finite coordinates once its node transform "
+                f"and scale={values['scale']:g} are applied; accepted: finite coordinates of "
+                "any size")
         mesh = _repaired(positions, faces, normals, uvs, world, report)
         if mesh is None:
             report.skipped.append(f"{node} (only degenerate faces)")
@@ -198,7 +250,7 @@ def objects_of(tm_scene, values: dict[str, Any], variant: str, label: str,
         while name in names:
             name += "_"
         names.add(name)
-        objects.append(SceneObject(name, TriangleMesh(positions, faces, normals, uvs), material))
+        objects.append(WorldObject(name, positions, faces, normals, uvs, material))
     if not objects:
         what = f"only {', '.join(report.skipped)}" if report.skipped else "no geometry"
         raise InvalidInputError(f"{label}: no triangles ({what}; point clouds and lines are "

@@ -17,10 +17,27 @@ GROUND_KD = 0.6
 ORBIT_ELEVATION_DEG, ORBIT_FOV_DEG, ORBIT_VIEWS = 25.0, 45.0, 30
 
 
-def ground(lo: np.ndarray, hi: np.ndarray, variant: str):
+def _ground_square(lo: np.ndarray, hi: np.ndarray) -> tuple[float, tuple[float, float, float]]:
+    """Side and centre of the ``ground=true`` square under the bounds (lo, hi): twice the larger
+    horizontal extent (or the height) wide, at the bounds' lowest y. Commutes with a
+    similarity, so it may be placed in the canonical frame from the canonical bounds."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     extent = hi - lo
     size = 2.0 * float(max(extent[0], extent[2], 0.5 * extent[1]))
-    center = ((lo[0] + hi[0]) / 2, float(lo[1]), (lo[2] + hi[2]) / 2)
+    return size, (float(lo[0] + hi[0]) / 2, float(lo[1]), float(lo[2] + hi[2]) / 2)
+
+
+def ground_bounds(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi), float64, of the :func:`ground` plane under the bounds (lo, hi)."""
+    size, center = _ground_square(lo, hi)
+    c = np.asarray(center)
+    half = np.array([0.5 * size, 0.0, 0.5 * size])
+    return c - half, c + half
+
+
+def ground(lo: np.ndarray, hi: np.ndarray, variant: str):
+    """The ``ground=true`` plane (kd :data:`GROUND_KD`, facing +Y) under the bounds (lo, hi)."""
+    size, center = _ground_square(lo, hi)
     return SceneObject("ground", grid_plane(size, 1, center=center),
                        Material(kd=(GROUND_KD,) * 3, name="ground"))
 

@@ -64,12 +64,13 @@ def _run_fails(tmp_path, monkeypatch, capfd, argv):
     (["--method", "vertex", "--scene", "plants", "--scene-param", "ground_subdivisions=100000"],
      ["ground_subdivisions='100000'", "2e+10 triangles", "TiB", "accepted: integers 1..",
       "this machine's memory"]),
-    # Degenerate scenes: too small for Mitsuba's float32 ray offset.
-    (["--method", "vertex", "--scene", "plane", "--scene-param", "size=1e-30"],
-     ["size=1e-30", "bounds diagonal 1.41e-30", "accepted: 0.00894..1e+06"]),
-    (["--method", "vertex", "--scene", "sphere-over-plane", "--scene-param", "radius=1e-9",
-      "--scene-param", "height=1e-8", "--scene-param", "plane_size=1e-7"],
-     ["radius=1e-09", "height=1e-08", "plane_size=1e-07", "bounds diagonal 1.42e-07"]),
+    # Degenerate scenes: a size float32 rounds to 0 leaves every vertex at one point (any
+    # other size is rendered in the canonical frame).
+    (["--method", "vertex", "--scene", "plane", "--scene-param", "size=1e-50"],
+     ["size=1e-50", "has zero extent (bounds diagonal 0", "accepted: a bounds diagonal > 0"]),
+    (["--method", "vertex", "--scene", "sphere-over-plane", "--scene-param", "radius=1e-60",
+      "--scene-param", "height=1e-59", "--scene-param", "plane_size=1e-58"],
+     ["radius=1e-60", "height=1e-59", "plane_size=1e-58", "has zero extent"]),
     # Method knobs whose memory is a product of knobs (bytes estimated in validate()).
     (["--method", "texture-tp", "--scene", "plane", "--set", "texture_resolution=8192",
       "--set", "sh_bands=8", "--set", "bounces=8"],
@@ -89,17 +90,19 @@ def test_bad_values_are_one_line_errors(tmp_path, monkeypatch, capfd, argv, frag
         assert fragment in err, (fragment, err)
 
 
-def test_extent_bound_sits_at_mitsubas_ray_offset(tmp_path, monkeypatch, capfd):
-    """The smallest accepted plane is where 100 offsets fit in its diagonal, no earlier."""
-    from prtbench.scene.params import MAX_OFFSET_FRACTION, RAY_EPSILON
+def test_scenes_of_any_size_are_accepted_in_the_canonical_frame():
+    """Sizes Mitsuba's absolute float32 ray offset could not render as built (a 1e-30 plane)
+    are moved to the canonical frame (DESIGN.md §22); the builder's length bound still holds."""
     from prtbench.scene.registry import get_scene
 
-    assert RAY_EPSILON == pytest.approx(8.9407e-5, rel=1e-4)  # mitsuba.math.RayEpsilon, float32
-    # A plane of size s has diagonal s·√2 and max|p| = s/2.
-    smallest = (1 + 0.0045) * RAY_EPSILON / MAX_OFFSET_FRACTION / np.sqrt(2)
-    get_scene("plane", size=1.02 * smallest)
-    with pytest.raises(InvalidInputError, match="bounds diagonal"):
-        get_scene("plane", size=0.98 * smallest)
+    for size in (1e-30, 1e-6):
+        scene = get_scene("plane", size=size)
+        assert scene.diagonal() == pytest.approx(2.0, rel=1e-6)
+        lo, hi = scene.world_bounds()
+        assert float(np.linalg.norm(hi - lo)) == pytest.approx(size * np.sqrt(2), rel=1e-6)
+    large = get_scene("plane", size=1e6)  # well conditioned as built: left as it is
+    assert large.world_from_canonical.is_identity
+    assert large.diagonal() == pytest.approx(1e6 * np.sqrt(2), rel=1e-6)
     with pytest.raises(InvalidInputError, match="size=2000000.0"):
         get_scene("plane", size=2e6)
 

@@ -65,6 +65,11 @@ def _by_kd(scene):
     return {o.material.name: o.material for o in scene.objects}
 
 
+def _world(scene, points) -> np.ndarray:
+    """``points`` of ``scene``'s canonical frame in the file's world (float64)."""
+    return scene.world_from_canonical.apply(points)
+
+
 def test_obj_mtl_materials_map_kd_ks_ns(tmp_path):
     path = _write_obj(tmp_path)
     glossy, report = read_scene_file(str(path), variant="glossy")
@@ -163,25 +168,30 @@ def test_gltf_metallic_roughness_mapping_and_node_transforms(tmp_path):
         np.testing.assert_allclose(o.material.ks, 0.04 * (1 - metallic) + base * metallic,
                                    atol=1e-6)
         assert o.material.shininess == pytest.approx(2 / 0.25 ** 2 - 2)  # α = 0.5² → s = 30
-    # Nodes moved their shared unit cube by (-2, .5, 0) and (3, .5, 0).
-    np.testing.assert_allclose(by_name["left"].mesh.positions.mean(0), [-2, 0.5, 0], atol=1e-6)
-    np.testing.assert_allclose(by_name["right"].mesh.positions.mean(0), [3, 0.5, 0], atol=1e-6)
-    lo, hi = scene.bounds()
+    # Nodes moved their shared unit cube by (-2, .5, 0) and (3, .5, 0) (in the file's world;
+    # the scene itself is stored centred, diagonal 2).
+    left, right = (_world(scene, by_name[n].mesh.positions).mean(0) for n in ("left", "right"))
+    np.testing.assert_allclose(left, [-2, 0.5, 0], atol=1e-6)
+    np.testing.assert_allclose(right, [3, 0.5, 0], atol=1e-6)
+    lo, hi = scene.world_bounds()
     np.testing.assert_allclose(lo, [-2.5, 0, -0.5], atol=1e-6)
     np.testing.assert_allclose(hi, [3.5, 1, 0.5], atol=1e-6)
+    assert scene.diagonal() == pytest.approx(2.0, rel=1e-6)
+    np.testing.assert_allclose(np.add(*scene.bounds()), 0.0, atol=1e-6)
     assert len(scene.trajectory) == 30 and scene.default_light == "sky"
     # Every orbit camera sees the bounds' centre and stands outside the bounding sphere.
     centre, radius = (lo + hi) / 2, np.linalg.norm(hi - lo) / 2
-    for view in scene.trajectory.views:
+    for view in map(scene.world_from_canonical.view, scene.trajectory.views):
         np.testing.assert_allclose(view.target, centre, atol=1e-9)
         assert np.linalg.norm(np.subtract(view.eye, centre)) > radius
     # ground=true: two triangles facing +Y at the lowest point, wider than the bounds.
     grounded = get_scene(str(path), ground="true")
     ground = [o for o in grounded.objects if o.name == "ground"][0]
     assert ground.mesh.n_triangles == 2
-    np.testing.assert_allclose(ground.mesh.positions[:, 1], 0.0, atol=1e-7)
+    ground_world = _world(grounded, ground.mesh.positions)
+    np.testing.assert_allclose(ground_world[:, 1], 0.0, atol=1e-6)
     np.testing.assert_allclose(ground.mesh.normals, [[0, 1, 0]] * 4, atol=1e-7)
-    assert np.ptp(ground.mesh.positions[:, 0]) > hi[0] - lo[0]
+    assert np.ptp(ground_world[:, 0]) > hi[0] - lo[0]
 
 
 def test_gltf_base_color_texture_is_linearised_kd(tmp_path):
@@ -214,7 +224,7 @@ def test_gltf_perspective_camera_becomes_the_view(tmp_path):
     scene.export(str(path))
     built, report = read_scene_file(str(path), scale="2")
     assert report.cameras == 1 and len(built.trajectory) == 1
-    view = built.trajectory.views[0]
+    view = built.world_from_canonical.view(built.trajectory.views[0])  # in the file's world
     np.testing.assert_allclose(view.eye, [0, 2, 10], atol=1e-6)  # moved by scale=2 too
     np.testing.assert_allclose(np.subtract(view.target, view.eye), [-1, 0, 0], atol=1e-6)
     np.testing.assert_allclose(view.up, [0, 1, 0], atol=1e-6)
@@ -249,7 +259,7 @@ def test_up_z_and_scale(tmp_path):
     box.apply_translation([0, 0, 2])  # standing on z = 0, +Z up
     path = tmp_path / "tower.stl"
     box.export(str(path))
-    lo, hi = get_scene(str(path), up="z", scale="0.5").bounds()
+    lo, hi = get_scene(str(path), up="z", scale="0.5").world_bounds()
     # (x, y, z) → (x, z, −y), then halved: the 4-unit height becomes y in [0, 2].
     np.testing.assert_allclose(lo, [-0.25, 0.0, -0.5], atol=1e-6)
     np.testing.assert_allclose(hi, [0.25, 2.0, 0.5], atol=1e-6)
@@ -267,10 +277,11 @@ def test_several_files_joined_with_plus_are_one_scene(tmp_path):
     assert len(both.objects) == 2 and all(o.name.split("/")[0] in ("box", "ball")
                                           for o in both.objects)
     assert both.n_triangles == sum(s.n_triangles for s in alone)
-    np.testing.assert_allclose(both.bounds()[0], [-1, -1, -1], atol=1e-6)  # box, scaled
-    np.testing.assert_allclose(both.bounds()[1], [7, 1, 1], atol=1e-2)  # ball at x = 6 ± 1
-    for combined, single in zip(both.objects, alone):
-        np.testing.assert_allclose(combined.mesh.positions, single.objects[0].mesh.positions)
+    np.testing.assert_allclose(both.world_bounds()[0], [-1, -1, -1], atol=1e-6)  # box, scaled
+    np.testing.assert_allclose(both.world_bounds()[1], [7, 1, 1], atol=1e-2)  # ball at x = 6 ± 1
+    for combined, single in zip(both.objects, alone):  # each in its own canonical frame
+        np.testing.assert_allclose(_world(both, combined.mesh.positions),
+                                   _world(single, single.objects[0].mesh.positions), atol=2e-6)
     assert both.params["file"] == "box.stl+ball.glb" and both.name.startswith("box+ball-")
     # identity follows every file, in order
     assert get_scene(f"{b}+{a}", scale="2").name != both.name
@@ -336,6 +347,8 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
         "f 1/1 2/2 3/3\n")
     small = tmp_path / "small.stl"
     trimesh.creation.box().export(str(small))
+    huge = tmp_path / "huge.obj"  # finite in float64, but not once scaled by 1e12
+    huge.write_text("v 0 0 0\nv 1e300 0 0\nv 0 1e300 0\nf 1 2 3\n")
     _glb_with_a_broken_embedded_texture(tmp_path / "badtex.glb")
     return [
         (str(tmp_path / "missing.glb"), {}, "no such file"),
@@ -346,8 +359,9 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, dict, str]]:
         (str(gltf), {}, "is missing"),
         (str(tmp_path / "badtex.obj"), {}, "texture 'broken.png' cannot be decoded"),
         (str(tmp_path / "badtex.glb"), {}, "cannot be decoded"),
-        (str(small), {"scale": "1e-9"}, "hint: --scene-param scale="),
-        (str(small), {"scale": "1e7"}, "bounds diagonal"),
+        (str(huge), {"scale": "1e12"}, "non-finite coordinates once its node transform and "
+                                       "scale=1e+12 are applied; accepted: finite coordinates"),
+        (str(small), {"scale": "0"}, r"scale='0'; accepted: finite numbers in (0, 1e+12]"),
         (str(small), {"up": "x"}, "accepted: y, z"),
         (str(small), {"units": "m"}, "has no parameter 'units'; accepted: scale, up, ground"),
     ]
@@ -366,17 +380,28 @@ def test_bad_inputs_are_one_line_errors_naming_the_file_and_cache_nothing(tmp_pa
         assert _cache_files() == before
 
 
-def test_the_scale_hint_of_a_too_small_file_scene_is_a_scale_that_imports(tmp_path):
-    # A 1 mm box (diagonal 1.7e-3) is below what float32 ray offsets allow (about 9e-3 near
-    # the origin); the refusal names the scale that brings the diagonal to about 2.
+def test_a_millimetre_file_scene_is_imported_in_the_canonical_frame(tmp_path):
+    # A 1 mm box (diagonal 1.7e-3) was refused before the canonical frame (Mitsuba's float32
+    # ray offset, about 9e-5, is 5 % of it); now it is stored centred with diagonal 2, and
+    # world_from_canonical (also in params, for the stored rows) says where it was.
     path = tmp_path / "tiny.stl"
-    trimesh.creation.box(extents=(1e-3, 1e-3, 1e-3)).export(str(path))
-    with pytest.raises(InvalidInputError, match="bounds diagonal 0.00173") as err:
-        get_scene(str(path))
-    hint = re.search(r"--scene-param scale=(\S+) makes it about 2", str(err.value))
-    assert hint, str(err.value)
-    lo, hi = get_scene(str(path), scale=hint.group(1)).bounds()
-    assert np.linalg.norm(hi - lo) == pytest.approx(2.0, rel=1e-2)
+    box = trimesh.creation.box(extents=(1e-3, 1e-3, 1e-3))
+    box.apply_translation((0.0, 5e-4, 0.0))
+    box.export(str(path))
+    scene = get_scene(str(path))
+    assert scene.diagonal() == pytest.approx(2.0, rel=1e-6)
+    np.testing.assert_allclose(np.add(*scene.bounds()), 0.0, atol=1e-6)
+    lo, hi = scene.world_bounds()
+    np.testing.assert_allclose(lo, [-5e-4, 0.0, -5e-4], atol=1e-9)
+    np.testing.assert_allclose(hi, [5e-4, 1e-3, 5e-4], atol=1e-9)
+    frame = scene.params["world_from_canonical"]
+    assert frame["scale"] == pytest.approx(np.sqrt(3) * 1e-3 / 2, rel=1e-6)
+    np.testing.assert_allclose(frame["offset"], [0.0, 5e-4, 0.0], atol=1e-12)
+    # In metres (scale=1000 of the same file) it is the same canonical scene.
+    metres = get_scene(str(path), scale="1000")
+    np.testing.assert_allclose(metres.objects[0].mesh.positions, scene.objects[0].mesh.positions,
+                               atol=1e-6)
+    assert metres.params["world_from_canonical"]["scale"] == pytest.approx(1e3 * frame["scale"])
 
 
 def test_scene_info_prints_counts_materials_and_repairs(tmp_path, capsys):
@@ -497,12 +522,13 @@ def test_translated_export_of_a_builtin_scene_imports_as_the_same_scene_moved(tm
         m = by_name[o.name]
         # Compared corner by corner: unused vertices of the built-in mesh are dropped.
         mine, theirs = m.mesh.faces, o.mesh.faces
-        np.testing.assert_allclose(m.mesh.positions[mine], o.mesh.positions[theirs] + t,
-                                   atol=2e-5)
+        np.testing.assert_allclose(_world(imported, m.mesh.positions[mine]),
+                                   o.mesh.positions[theirs] + t, atol=2e-5)
         np.testing.assert_allclose(m.mesh.normals[mine], o.mesh.normals[theirs], atol=1e-5)
         np.testing.assert_allclose(m.material.kd, o.material.kd, atol=0.5 / 255 + 1e-9)
     for view in builtin.trajectory.views[:3]:
         moved = replace(view, eye=tuple(np.add(view.eye, t)), target=tuple(np.add(view.target, t)))
+        moved = imported.world_from_canonical.inverse().view(moved)  # the import's frame
         a = geometry_mask(builtin, view, 64, 48)
         b = geometry_mask(imported, moved, 64, 48)
         assert a.sum() > 500 and np.mean(a != b) < 0.002  # edge pixels may flip in float32
@@ -551,6 +577,8 @@ def _builtin_and_imported_psnr(method: str, name: str, path: Path, *, builtin, l
     from prtbench.bench.regress import gate
     from prtbench.bench.runner import execute, prepare
 
+    import dataclasses
+
     psnr = []
     for scene in (name, str(path)):
         job = Job(method=method, scene=scene, profile="smoke", views=1, light=light,
@@ -559,7 +587,11 @@ def _builtin_and_imported_psnr(method: str, name: str, path: Path, *, builtin, l
         if scene != name:
             assert prepared.scene.name.startswith(f"{name}-")  # really the imported file
             moved = copy.copy(prepared.scene)
-            moved.trajectory, moved.exposure = builtin.trajectory, builtin.exposure
+            # The built-in's views are in the file's world: into the import's canonical frame.
+            into = moved.world_from_canonical.inverse()
+            moved.trajectory = dataclasses.replace(
+                builtin.trajectory, views=tuple(map(into.view, builtin.trajectory.views)))
+            moved.exposure = builtin.exposure
             prepared.scene = moved.with_views(1)
         summary = execute(prepared, progress=False, echo=False)
         assert summary.status == "ok"

@@ -239,24 +239,32 @@ def _base():
     return get_scene("sphere-over-plane", variant="glossy", sphere_segments=16).with_views(1)
 
 
-def test_scaled_scene_scales_geometry_and_views_and_keeps_the_picture():
+def test_scaled_scene_scales_the_world_and_keeps_the_canonical_picture():
+    # The canonical frame (DESIGN.md §22): the world is scaled (world_from_canonical, recorded
+    # in params), the canonical geometry and views the base's own.
     from prtbench.stability.scenes import case_scene
 
     base = _base()
     big = case_scene(base, Case("scale=1e+04", "scene", scale=1e4))
-    assert big.diagonal() == pytest.approx(1e4 * base.diagonal(), rel=1e-6)
-    assert np.allclose(big.trajectory.views[0].eye, 1e4 * np.asarray(base.trajectory.views[0].eye))
+    lo, hi = big.world_bounds()
+    assert np.linalg.norm(hi - lo) == pytest.approx(1e4 * base.diagonal(), rel=1e-6)
+    assert big.world_from_canonical.scale == pytest.approx(1e4)
+    world_eye = big.world_from_canonical.view(big.trajectory.views[0]).eye
+    assert np.allclose(world_eye, 1e4 * np.asarray(base.trajectory.views[0].eye))
+    assert np.allclose(big.trajectory.views[0].eye, base.trajectory.views[0].eye)
+    assert big.diagonal() == pytest.approx(base.diagonal(), rel=1e-6)
     assert big.params["stability_case"] == "scale=1e+04"
-    assert big.content_hash() != base.content_hash()
+    assert big.params["world_from_canonical"]["scale"] == pytest.approx(1e4)
 
 
-def test_case_scenes_refuse_what_float32_offsets_or_materials_cannot_hold():
+def test_case_scenes_refuse_only_undefined_extents_or_materials_out_of_range():
     from prtbench.stability.scenes import case_scene
 
-    with pytest.raises(InvalidInputError, match="bounds diagonal .* accepted"):
-        case_scene(_base(), Case("scale=1e-04", "scene", scale=1e-4))
-    with pytest.raises(InvalidInputError, match="bounds diagonal .* accepted"):
-        case_scene(_base(), Case("translate=1e+05", "scene", translate=1e5))
+    # Once refused by the float32 extent check, now rendered in the canonical frame.
+    case_scene(_base(), Case("scale=1e-04", "scene", scale=1e-4))
+    case_scene(_base(), Case("translate=1e+05", "scene", translate=1e5))
+    with pytest.raises(InvalidInputError, match=r"has zero extent .* accepted: a bounds diagonal"):
+        case_scene(_base(), Case("scale=1e-320", "scene", scale=1e-320))
     with pytest.raises(InvalidInputError, match=r"shininess=100000.0; accepted: \[0, 10000\]"):
         case_scene(_base(), Case("shininess=1e+05", "material", shininess=1e5))
     glossy = case_scene(_base(), Case("shininess=1e+04", "material", shininess=1e4))
