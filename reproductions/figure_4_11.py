@@ -132,7 +132,8 @@ class Figure411(Figure):
                          "rays_per_point": config.rays_per_point, "epochs": config.epochs,
                          "heldout_points": held["points"], "heldout_relative_rms": held["relative_rms"],
                          "heldout_dc_relative": held["dc_relative"]})
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, device=device_description(), images=images)
         return {}
 

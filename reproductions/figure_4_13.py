@@ -131,7 +131,8 @@ class Figure413(Figure):
                 "layers": base.layers, "sh_bands": base.sh_bands, "samples": base.samples,
                 "rays_per_point": base.rays_per_point, "epochs": base.epochs,
                 "reference_spp": prof.reference_spp})
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=", ".join(sorted(renderers - {""})),
                             device=device_description(), images=display_panels(shown))
         return {}

@@ -132,7 +132,8 @@ class FigureDdprt12(Figure):
             images[label] = d
             errors[f"{label}: |error| x4"] = shared.error_image(image, ref.image,
                                                                  scale=4.0 * scene.exposure)
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=", ".join(sorted(renderer_names - {""})),
                             device=device_description(),
                             images=display_panels({**images, **errors}))

@@ -121,7 +121,8 @@ class FigureDdprt14(Figure):
             images[f"ours n={n}"] = display(study.ours, exposure=gain)
             images[f"projection n={n}"] = display(study.projection, exposure=gain)
         images[f"Mitsuba indirect ({spp} spp)"] = display(study.reference, exposure=gain)
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=gl.renderer_string(),  # image_study's GL
                             device=device_description(), images=display_panels(images))
         return {}

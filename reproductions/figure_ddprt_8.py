@@ -90,7 +90,8 @@ class FigureDdprt8(Figure):
                 f"{short}: Mitsuba indirect x4": display(study.reference, exposure=gain),
                 f"{short}: |indirect error| x4": shared.error_image(study.ours, study.reference,
                                                                      scale=gain)})
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=gl.renderer_string(),  # image_study's GL
                             device=device_description(), images=display_panels(images))
         return {}

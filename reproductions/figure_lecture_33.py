@@ -177,12 +177,14 @@ class FigureLecture33(Figure):
                          "reference_spp": spp,
                          "reference_noise_display": ref.noise_rmse_display,
                          "scene": SCENE, "variant": VARIANT, "light": LIGHT})
-        measurements.record(TABLE, rows, results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load(rows),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=renderer_name,
                             device=device_description(), images=display_panels(images))
         curve = [row for name in CURVE_LIGHTS for row in
                  lighting_errors(get_light(name), n, max_bands=settings["curve_sh_bands"])]
-        measurements.record(CURVE, curve, results_path=results_path, run_id=run_id,
+        measurements.record(CURVE, shared.with_load(curve),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, device=device_description())
         return {}
 

@@ -262,7 +262,8 @@ class FigureNw6(Figure):
                  "scene": scene.name, "light": light.name, "view": 0, "pixels": int(len(pick)),
                  "gather": int(gather), "cubemap": int(n), "selection": config.selection,
                  "width": st.width, "height": st.height, "reference_spp": st.reference_spp}
-        measurements.record(TABLE, [*records, facts], results_path=results_path, run_id=run_id,
+        measurements.record(TABLE, shared.with_load([*records, facts]),
+                            results_path=results_path, run_id=run_id,
                             profile=profile, renderer=renderer_string,
                             device=device_description())
         return {}

@@ -21,6 +21,7 @@ import numpy as np
 
 from prtbench.api.cache import atomic_path
 from prtbench.bench.job import Job, Outputs
+from prtbench.bench.runner import load_average
 from prtbench.bench.submit import JobResult, submit
 from prtbench.io import imageio
 from prtbench.render import gl
@@ -104,6 +105,18 @@ def run_cells(cells: Sequence[Job], *, profile: str, results_path: Path | None,
     for run in runs:
         run.rows = frame[frame["run_id"] == run.run_id].copy()
     return runs
+
+
+def with_load(rows: Sequence[dict]) -> list[dict]:
+    """``rows`` each with the 1-minute load average now, as ``load_average``, for storing.
+
+    A figure that stores measurement rows of its own (not the runner's, which carry it)
+    stamps them as it stores them, right after measuring, so that its caption
+    (:func:`prtbench.bench.reproduction.provenance_line`) says how busy the machine was and
+    ``tests/test_reports_provenance.py`` can check it. A row's own value is kept.
+    """
+    load = load_average()
+    return [{"load_average": load, **row} for row in rows]
 
 
 def records(frame) -> list[dict]:

@@ -28,7 +28,7 @@ from prtbench.api.errors import AssetMissingError
 from prtbench.api.method import load_or_precompute
 from prtbench.api.profiles import get_profile
 from prtbench.bench.reproduction import Reproduction
-from prtbench.bench.runner import device_description
+from prtbench.bench.runner import device_description, load_average
 from prtbench.scene.registry import get_scene
 from prtbench.store.results import ResultRow, ResultsStore, git_sha
 
@@ -134,6 +134,7 @@ class DdprtTable1(Reproduction):
                     frame_ms_p95=times["frame"].p95_ms, memory_bytes=memory,
                     precompute_s=float(artifact.meta["bake_seconds"]), renderer=renderer_string,
                     device=device, git_sha=sha, profile=profile, run_id=run_id,
+                    load_average=load_average(),
                     scene_triangles=scene.n_triangles,
                     scene_params={"column": column, "label": label, "substitution": scene.substitution},
                     timing_source=times["frame"].source))

@@ -265,10 +265,11 @@ def measure_nw(writer: RowWriter, st: Setup, config, label: dict, *, view_sets=V
                 light = get_light(light_name)
                 for index, view in enumerate(scene.trajectory.views):
                     ref, ref_indirect, _ = refs.get(scene, light, view)
-                    indirect = renderer.indirect(view, light)
                     # = renderer.render(view, light) without computing the network twice
-                    direct = renderer.direct_image(view, light)
-                    full = indirect if direct is None else indirect + direct
+                    indirect, direct = renderer.frame(view, light)
+                    full = indirect + direct
+                    if config.direct == "offline-reference":  # the diagnostic, never ranked
+                        full = full + renderer.offline_direct(view, light)
                     values, covered = image_metrics(scene, view, full=full, indirect=indirect,
                                                     ref_full=ref.image, ref_indirect=ref_indirect,
                                                     width=st.width, height=st.height)

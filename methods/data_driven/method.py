@@ -128,6 +128,10 @@ class DataDrivenPRT(Method):
     main_knobs = ("basis",)
     paper = "Belcour, Deliot, Barbier and Soler 2022, data-driven PRT (SIGGRAPH 2022)"
     light_dependence = "family"
+    light_class = "family"
+    # placement="visible" puts its measurement points on what the trajectory's views see: the
+    # views are an input of the precompute, so they are in its cache key.
+    views_in_key = True
     light_dependence_why = ("indirect light comes from a basis learnt from one family of lights "
                             "(light_family; default: the environment map rotated about +Y)")
     profile_overrides = {

@@ -103,6 +103,7 @@ class TextureMethod(Method):
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
     main_knobs = ("sh_bands", "texture_resolution")
     product: ClassVar[str] = "tpfl"
+    baked_light_knobs = {"bounces": 0}  # bounce_light is baked into the bounce textures
     light_baking_knobs = {"bounces": ("fixed-light", 0, "bounces > 0 bakes bounce_light into "
                                       "the interreflection textures")}
     #: The sun, as for the vertex methods: shadows are what a transfer texture must get right.

@@ -40,6 +40,7 @@ from prtbench.api.cache import (
 from prtbench.api.plugins import method_specs
 from prtbench.api.profiles import get_profile
 from prtbench.api.registry import Registry
+from prtbench.api.residency import resident_parts
 
 if TYPE_CHECKING:
     from prtbench.scene.model import Scene, View
@@ -142,6 +143,28 @@ class Renderer(ABC):
     def memory_bytes(self) -> int:
         """Bytes the method must keep resident to render (transfer data, textures, weights)."""
 
+    #: Milliseconds of each part of the last timed frames (medians), filled by
+    #: :meth:`frame_time` where a frame has parts (CPU relighting, upload, draw, readback,
+    #: network, ...); empty: the whole frame is one part.
+    frame_components: dict[str, float] = {}
+
+    def light_change(self, light: "EnvironmentLight") -> bool:
+        """Do, from scratch, the work a new ``light`` costs before its first frame (an SH
+        projection, per-light matrices, a cubemap resampling, median cut), so that the runner
+        can time it (``light_change_ms``). Returns False when the method has none to do."""
+        return False
+
+    def memory_breakdown(self) -> dict[str, int]:
+        """Every resident part, ``{"gpu: transfer_buffer": bytes, "cpu: model.weights": ...}``.
+
+        Everything the renderer holds to draw the next frame -- buffers, textures, weights,
+        atlases, G-buffers, render targets, cached images -- found on the renderer by
+        :func:`prtbench.api.residency.resident_parts` (a test checks the GL parts against
+        what the renderer really allocated). Its sum is what rankings count as memory;
+        :meth:`memory_bytes` stays the method's own data, as its paper counts it.
+        """
+        return resident_parts(self)
+
     def release(self) -> None:
         """Free GPU resources."""
 
@@ -177,6 +200,15 @@ class Method(ABC):
     #: Knob settings that tie an otherwise light-free method to a light:
     #: ``{knob: (dependence, light-free value, why)}``.
     light_baking_knobs: ClassVar[Mapping[str, tuple[str, Any, str]]] = {}
+    #: The light class of the protocol (docs/PROTOCOL.md), one of :data:`LIGHT_CLASSES`:
+    #: ``relight`` (renders any light; per-light work such as an SH projection or a TPFL
+    #: matrix is measured as ``light_change_ms``), ``family`` (fitted or learnt from a family
+    #: of lights, e.g. rotations of one map) or ``fixed`` (one light baked into the
+    #: precompute). A knob of :attr:`baked_light_knobs` away from its light-free value makes
+    #: a config ``fixed`` (:meth:`light_class_of`).
+    light_class: ClassVar[str] = "relight"
+    #: Knobs that bake a light into the precompute: ``{knob: light-free value}``.
+    baked_light_knobs: ClassVar[Mapping[str, Any]] = {}
     #: Where the method keeps what it precomputes, which is what its cost grows with; one of
     #: :data:`STORAGES`: ``"per-vertex"`` (the mesh's tessellation limits it), ``"per-texel"``
     #: (of a UV atlas), ``"per-probe"`` (of a volume), ``"per-pixel"`` (of one fixed view),
@@ -231,6 +263,33 @@ class Method(ABC):
         with ``config`` (a fixed-view method's transport is per pixel); any by default."""
 
     @classmethod
+    def light_class_of(cls, config: Any) -> str:
+        """The light class of ``config``: :attr:`light_class`, or ``fixed`` where a knob of
+        :attr:`baked_light_knobs` bakes a light into the precompute."""
+        for knob, free_value in cls.baked_light_knobs.items():
+            if getattr(config, knob, free_value) != free_value:
+                return "fixed"
+        return cls.light_class
+
+    @classmethod
+    def diagnostic_reason(cls, config: Any) -> str | None:
+        """Why ``config`` is a diagnostic that no ranking may show (e.g. it takes pixels from
+        the reference renderer); None for a configuration that meets the protocol."""
+        return None
+
+    @classmethod
+    def training_lights(cls, config: Any) -> tuple[str, ...]:
+        """Names of the registered lights the precompute trains or fits on (rotations of them
+        included); a run under one of them is ``trained``, not held out. None by default."""
+        return ()
+
+    @classmethod
+    def training_cameras(cls, scene: "Scene", config: Any) -> list["View"]:
+        """The cameras whose images the precompute trains or fits on; an evaluated view that
+        coincides with one is ``trained``, not held out (docs/PROTOCOL.md). None by default."""
+        return []
+
+    @classmethod
     def compress_dimension(cls, config: Any) -> int | None:
         """Values per signal of the transfer its ``compress`` knobs compress, where the stored
         artifact does not show it (the stability matrix derives ``pca_vectors = d`` from it);
@@ -281,6 +340,8 @@ class Method(ABC):
 
 #: Values of :attr:`Method.light_dependence`, from least to most tied to a light.
 LIGHT_DEPENDENCES = ("none", "fixed-light", "family")
+#: Values of :attr:`Method.light_class`.
+LIGHT_CLASSES = ("relight", "family", "fixed")
 #: Values of :attr:`Method.storage`.
 STORAGES = ("per-vertex", "per-texel", "per-probe", "per-pixel", "network")
 
@@ -345,6 +406,7 @@ def _load_artifact(method_cls: type[Method], path) -> Artifact | None:
     if stored is None or "__meta__" not in stored:
         return None
     meta = json.loads(str(stored.pop("__meta__")))
+    _repair_build_record(path.with_suffix(".json"), meta)
     return Artifact(method_cls.name, stored, meta["meta"], meta["precompute_s"], True)
 
 
@@ -367,18 +429,53 @@ def _build_artifact(method_cls: type[Method], scene: "Scene", config: Any, *, pr
             artifact.rebuilt, artifact.rebuild_s = True, wall_s
             if record is not None:
                 artifact.precompute_s, artifact.original_time_known = record, True
-        meta = json.dumps({"meta": artifact.meta, "precompute_s": artifact.precompute_s})
+        # A rebuild's time is not the build's: the first build's time is known only from a
+        # first build or from a sound record. The .npz keeps it too, so that a cache hit can
+        # restore a record lost or damaged since (_repair_build_record).
+        first_build_s = record if artifact.rebuilt else artifact.precompute_s
+        meta = json.dumps({"meta": artifact.meta, "precompute_s": artifact.precompute_s,
+                           "first_build_s": first_build_s})
         save_arrays(path, {**artifact.arrays, "__meta__": np.array(meta)})
-        if not artifact.rebuilt:  # a rebuild's time is not the build's: record only first builds
-            with atomic_path(record_path) as tmp:
-                tmp.write_text(json.dumps({"precompute_s": artifact.precompute_s}))
+        if first_build_s is not None:
+            _write_build_record(record_path, first_build_s)
     return artifact
 
 
 def _read_build_record(path) -> float | None:
-    """The original build time recorded beside an artifact, None if absent or unreadable."""
+    """The first build's time recorded beside an artifact (``<key>.json``); None if absent.
+
+    A damaged record (truncated, edited: not a JSON object whose ``precompute_s`` is a finite,
+    non-negative number) is never trusted: it is removed and read as absent, so the build in
+    progress or the next cache hit writes a sound one where the first build's time is known.
+    """
     try:
-        value = float(json.loads(path.read_text())["precompute_s"])
-    except (OSError, ValueError, TypeError, KeyError):
+        value = json.loads(path.read_text())["precompute_s"]
+        seconds = math.nan if isinstance(value, (bool, str)) else float(value)
+    except FileNotFoundError:
         return None
-    return value if math.isfinite(value) and value >= 0.0 else None
+    except (OSError, ValueError, TypeError, KeyError, IndexError, OverflowError):
+        seconds = math.nan  # unreadable, not JSON, not an object, no number: damaged
+    if math.isfinite(seconds) and seconds >= 0.0:
+        return seconds
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:  # a read-only cache: read as absent all the same
+        pass
+    return None
+
+
+def _write_build_record(path, seconds: float) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps({"precompute_s": float(seconds)}))
+
+
+def _repair_build_record(path, meta: Mapping[str, Any]) -> None:
+    """On a cache hit, the record beside the artifact says the first build's time its meta
+    keeps (``first_build_s``; absent from older artifacts and from rebuilds that never knew
+    it). Best effort: a hit in a read-only cache still returns its artifact."""
+    first_build_s = meta.get("first_build_s")
+    if _read_build_record(path) != first_build_s and first_build_s is not None:
+        try:
+            _write_build_record(path, first_build_s)
+        except OSError:
+            pass

@@ -20,13 +20,19 @@ a Dask worker that died, a process that crashed or ran past its time -- comes ba
 from __future__ import annotations
 
 import functools
+import logging
 import multiprocessing
 import os
+import signal
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
+
+from tqdm.std import TqdmDefaultWriteLock
 
 from prtbench.api.errors import InvalidInputError
 from prtbench.bench.cluster import (
@@ -37,6 +43,11 @@ from prtbench.bench.cluster import (
     one_line,
     register_setup,
 )
+
+try:
+    from distributed import WorkerPlugin as _WorkerPluginBase
+except ImportError:  # Dask is needed only with workers >= 1
+    _WorkerPluginBase = object
 
 
 @dataclass(frozen=True)
@@ -116,6 +127,66 @@ class SerialExecutor(Executor):
         return len(self._queue)
 
 
+@contextmanager
+def _children_ignore_sigint() -> Iterator[None]:
+    """Ignore SIGINT while the block starts worker processes, which inherit the ignoring.
+
+    Ctrl-C reaches the terminal's whole process group. Dask's worker processes would each
+    answer it with a ``KeyboardInterrupt`` traceback and die under their running cell;
+    ignoring it, they are stopped by the client, which alone handles the interrupt (one
+    line, exit 130, see :func:`prtbench.cli.main`). An ignored disposition survives ``spawn``
+    (fork + exec) and Python then installs no SIGINT handler of its own; a handler or a
+    blocked mask would not survive. The client's own handler is back once the workers run.
+    """
+    if threading.current_thread() is not threading.main_thread():  # only it may set handlers
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+
+
+class _SilentOnceClosing(logging.Filter):
+    """Drops a worker's log records once it is closing (see :class:`QuietOnInterrupt`)."""
+
+    def __init__(self, worker) -> None:
+        super().__init__()
+        self.worker = worker
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return self.worker.status.name not in ("closing", "closed", "failed")
+
+
+class QuietOnInterrupt(_WorkerPluginBase):
+    """Lets a Dask worker be stopped mid-cell by the client without a word on stderr.
+
+    Ctrl-C interrupts the client (one line, exit 130: :func:`prtbench.cli.main`), which
+    closes the cluster under the running cells; the workers then must say nothing:
+
+    * SIGINT is ignored (as it is from birth for the workers the client starts, see
+      :func:`_children_ignore_sigint`; this covers workers a nanny restarts later);
+    * a closing worker's log records are dropped: its heartbeats and comms to a scheduler
+      that is closing too fail then, logged as tracebacks that concern no user;
+    * tqdm's progress bars get no inter-process lock: a spawned worker shares it with no
+      other process, and the named semaphore behind it, still held when the shutdown kills
+      the worker under its cell, made multiprocessing's resource tracker warn of a "leaked
+      semaphore" after prtbench's last line. tqdm's thread lock stays.
+    """
+
+    name = "prtbench-quiet-on-interrupt"
+
+    def setup(self, worker) -> None:
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        silent = _SilentOnceClosing(worker)
+        for handler in logging.getLogger("distributed").handlers:
+            handler.addFilter(silent)
+        if not hasattr(TqdmDefaultWriteLock, "mp_lock"):  # tqdm makes it once, if absent
+            TqdmDefaultWriteLock.mp_lock = None
+
+
 class DaskExecutor(Executor):
     """Tasks on Dask workers.
 
@@ -151,10 +222,13 @@ class DaskExecutor(Executor):
         if self._client is None:
             from distributed import Client
 
-            self._cluster = local_cluster(self._requested or cores(), threads=self.threads)
+            with _children_ignore_sigint():
+                self._cluster = local_cluster(self._requested or cores(), threads=self.threads)
             self._client = Client(self._cluster)
         if not self.workers:
             self.workers = register_setup(self._client, threads=self.threads)
+            if self._cluster is not None:  # our own workers; never another's --scheduler's
+                self._client.register_plugin(QuietOnInterrupt())
         return self.workers
 
     def submit(self, task, item):

@@ -42,6 +42,10 @@ class Job:
         Scene builder parameters (``--scene-param``).
     reference : str
         ``path`` (Mitsuba) or ``method:<name>``.
+    reference_bounces : int, optional
+        Interreflection bounces of the path reference (max depth = bounces + 2). One panel has
+        one reference (docs/PROTOCOL.md), so a sweep comparing methods fixes it for all of
+        them; None: the method's own ``bounces`` knob (0 where it has none).
     views : int, optional
         Trajectory views (None: the profile's count, capped by the scene's).
     resolution : (int, int), optional
@@ -58,6 +62,7 @@ class Job:
     overrides: Mapping[str, Any] = field(default_factory=dict)
     scene_params: Mapping[str, Any] = field(default_factory=dict)
     reference: str = "path"
+    reference_bounces: int | None = None
     views: int | None = None
     resolution: tuple[int, int] | None = None
     profile: str | None = None

@@ -87,6 +87,22 @@ def check_file(option: str, path: str | Path) -> None:
     _check_folder(option, path, Path(os.path.abspath(path)).parent)
 
 
+def check_file_clear_of(option: str, path: str | Path, *, folder_option: str,
+                        folder: str | Path) -> None:
+    """Raise :class:`InvalidInputError` if the file ``path`` is the folder ``folder`` that the
+    command makes before it writes the file, or a folder above it.
+
+    Each passes its own check while neither exists (:func:`check_file`, :func:`check_folder`);
+    then the file's write meets a folder, after all the work.
+    """
+    file, made = Path(os.path.realpath(path)), Path(os.path.realpath(folder))
+    if file == made or file in made.parents:
+        where = "is" if file == made else "is above"
+        raise InvalidInputError(f"{option} '{path}' {where} the {folder_option} folder "
+                                f"'{folder}', which the command makes for its files; accepted: "
+                                f"a file path, e.g. '{Path(folder) / 'run.json'}'")
+
+
 def check_results_store(option: str, path: str | Path) -> None:
     """``path`` can hold the results store: writable, and absent or a store of our schema."""
 

@@ -17,11 +17,12 @@ from __future__ import annotations
 import math
 import os
 import platform
+import re
 import sys
 import time
 import uuid
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +36,22 @@ from prtbench.api.method import METHODS, Method, load_or_precompute
 from prtbench.api.profiles import Profile, get_profile
 from prtbench.bench import metrics
 from prtbench.bench.degeneracy import degenerate_reason
+from prtbench.bench.intervals import metric_interval
 from prtbench.bench.job import NO_OUTPUTS, Job, Outputs
-from prtbench.bench.outputs import check_cache, check_file, check_folder, check_results_store
+from prtbench.bench.outputs import (
+    check_cache,
+    check_file,
+    check_file_clear_of,
+    check_folder,
+    check_results_store,
+)
+from prtbench.bench.protocol import (
+    MAX_REFERENCE_BOUNCES,
+    panel_of,
+    reference_bounces,
+    split_of,
+    time_light_change,
+)
 from prtbench.io import imageio
 from prtbench.render import renders
 from prtbench.render.mitsuba_variant import check_variant
@@ -78,6 +93,11 @@ class ViewResult:
     status_reason: str = ""
     #: Pixels covered by geometry (the masked metrics' support).
     covered_pixels: int | None = None
+    #: The masked PSNR's interval from the reference's noise (:mod:`prtbench.bench.intervals`).
+    psnr_masked_lo: float | None = None
+    psnr_masked_hi: float | None = None
+    #: Milliseconds of the frame's parts (the renderer's ``frame_components``).
+    frame_components: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -105,6 +125,14 @@ class RunSummary:
     precompute_rebuild_s: float | None = None
     #: Why ``precompute_s`` is not the original build's time (empty when it is).
     rebuilt_note: str = ""
+    #: The protocol's facts (docs/PROTOCOL.md): the reference's bounces, the panel, the light
+    #: class, the split, the resident parts and the per-light work.
+    reference_bounces: int | None = None
+    panel: str = ""
+    light_class: str = ""
+    split: str = ""
+    memory_breakdown: dict[str, int] = field(default_factory=dict)
+    light_change_ms: float | None = None
 
     @property
     def status(self) -> str:
@@ -130,11 +158,12 @@ class RunSummary:
 
 
 def parse_resolution(text: str) -> tuple[int, int]:
-    """``"WxH"`` → (W, H) with both in 8..8192."""
-    try:
-        w, h = (int(p) for p in text.lower().split("x"))
-    except ValueError:
-        raise InvalidInputError(f"--res '{text}'; accepted: WxH, e.g. 320x240") from None
+    """``"WxH"`` → (W, H) with both in 8..8192 (whole numbers in digits: not ``1e3``,
+    ``1_000`` or ``64.0``)."""
+    found = re.fullmatch(r"([+-]?\d+)x([+-]?\d+)", text.strip().lower())
+    if found is None:
+        raise InvalidInputError(f"--res '{text}'; accepted: WxH, e.g. 320x240")
+    w, h = int(found[1]), int(found[2])
     if not (8 <= w <= 8192 and 8 <= h <= 8192):
         raise InvalidInputError(f"--res '{text}'; accepted: width and height in 8..8192")
     return w, h
@@ -159,11 +188,15 @@ def resolve_views(scene: Scene, profile: Profile, views: int | None) -> Scene:
 
 
 def check_outputs(outputs: Outputs, *, results_path: Path | None, store: bool) -> None:
-    """Every location a job will write to is usable (see :mod:`prtbench.bench.outputs`)."""
+    """Every location a job will write to is usable (see :mod:`prtbench.bench.outputs`),
+    ``--json`` not the ``--out`` folder the run makes for its images (nor one above it)."""
     if outputs.out_dir is not None:
         check_folder("--out", outputs.out_dir)
     if outputs.json_path is not None:
         check_file("--json", outputs.json_path)
+        if outputs.out_dir is not None:
+            check_file_clear_of("--json", outputs.json_path, folder_option="--out",
+                                folder=outputs.out_dir)
     if store:
         check_results_store("--results", results_path or default_path())
     check_cache()
@@ -184,6 +217,14 @@ def prepare(job: Job, *, outputs: Outputs = NO_OUTPUTS, results_path: Path | Non
     if job.variant not in VARIANTS:
         raise UnknownNameError("variant", job.variant, VARIANTS)
     reference_method = _reference_method(job.reference, job.profile)
+    rb = job.reference_bounces
+    if rb is not None and (isinstance(rb, bool) or not isinstance(rb, int)
+                           or not 0 <= rb <= MAX_REFERENCE_BOUNCES):
+        raise InvalidInputError(f"reference bounces {rb!r}; accepted: a whole number 0.."
+                                f"{MAX_REFERENCE_BOUNCES}")
+    if rb is not None and reference_method is not None:
+        raise InvalidInputError(f"reference bounces {rb} with reference '{job.reference}'; "
+                                "accepted: reference bounces only with the path reference")
     thread_count()  # a bad $PRTBENCH_THREADS fails here, not at the first ray query
     if reference_method is None:  # only the path-traced reference needs Mitsuba
         check_variant()  # a bad $PRTBENCH_MITSUBA_VARIANT fails before the precompute
@@ -221,7 +262,7 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                f", {artifact.nbytes / 2**20:.2f} MiB")
     renderer = method_cls.renderer(scene, artifact, config, width=width, height=height)
     ref_renderer = None
-    bounces = int(getattr(config, "bounces", 0))
+    bounces = reference_bounces(job, config)
     if prepared.reference_method is not None:
         ref_cls, ref_config = prepared.reference_method
         ref_artifact = load_or_precompute(ref_cls, scene, ref_config, progress=progress)
@@ -254,6 +295,10 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                           for key in (name, f"{name}_masked")}
                 test_d = np.nan_to_num(test_d, nan=0.0)  # for the PNGs
             reason = degenerate_reason(image, test_d, ref_d, mask, values)
+            lo, hi = metric_interval(values.get("psnr_masked"),
+                                     noise_rmse=None if ref_renderer is not None
+                                     else float(ref.noise_rmse_display),
+                                     pixels=int(np.count_nonzero(mask)))
             # Kept for the comparison site (sweeps write no image files): prtbench/renders.py.
             renders.store(run_id, index, image, exposure=scene.exposure,
                           reference_file=ref.path if ref_renderer is None else None,
@@ -270,12 +315,15 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
                 files = {k: f"{stem}{suffix}" for k, suffix in
                          (("exr", ".exr"), ("png", ".png"), ("reference", "-reference.png"),
                           ("flip", "-flip.png"))}
+            components = dict(renderer.frame_components) or {"frame": times.median_ms}
             view_results.append(ViewResult(index, values, times.median_ms, times.p95_ms, files,
                                            times.source, "degenerate" if reason else "ok", reason,
-                                           int(np.count_nonzero(mask))))
+                                           int(np.count_nonzero(mask)), lo, hi, components))
             _log(echo, f"[prtbench] view {index}: psnr_masked={values.get('psnr_masked', float('nan')):.2f} dB "
                        f"frame={times.median_ms:.3f} ms{f' DEGENERATE: {reason}' if reason else ''}")
         memory = renderer.memory_bytes()
+        breakdown = {k: int(v) for k, v in renderer.memory_breakdown().items()}
+        light_change_ms = time_light_change(renderer, scene.trajectory.views[0], light)
     finally:
         renderer.release()
         if ref_renderer is not None:
@@ -287,7 +335,12 @@ def execute(prepared: PreparedRun, *, progress: bool = True, echo: bool = True) 
         reference_noise_display=ref_noise, renderer=renderer.renderer_string,
         memory_bytes=memory, precompute_s=artifact.precompute_s,
         precompute_cached=artifact.cache_hit, run_id=run_id, views=view_results,
-        precompute_rebuilt=artifact.rebuilt, precompute_rebuild_s=artifact.rebuild_s)
+        precompute_rebuilt=artifact.rebuilt, precompute_rebuild_s=artifact.rebuild_s,
+        reference_bounces=bounces if ref_renderer is None else None,
+        panel=panel_of(prepared, ref_spp=ref_spp, bounces=bounces),
+        light_class=method_cls.light_class_of(config),
+        split=split_of(method_cls, config, light, scene=scene), memory_breakdown=breakdown,
+        light_change_ms=light_change_ms)
     summary.rebuilt_note = (
         "" if artifact.original_time_known else
         "precompute rebuilt from a corrupt cache file; precompute_s is the rebuild's time"
@@ -372,7 +425,12 @@ def summary_rows(summary: RunSummary, scene: Scene, *, workers: int = 1,
             timing_source=v.timing_source, status=v.status, status_reason=reason,
             precompute_rebuilt=summary.precompute_rebuilt, covered_pixels=v.covered_pixels,
             scene_vertices=scene.n_vertices, workers=workers, cell_key=cell_key,
-            load_average=load_average()))
+            load_average=load_average(), reference_bounces=summary.reference_bounces,
+            panel=summary.panel, light_class=summary.light_class, split=summary.split,
+            psnr_masked_lo=v.psnr_masked_lo, psnr_masked_hi=v.psnr_masked_hi,
+            frame_components=dict(v.frame_components),
+            memory_breakdown=dict(summary.memory_breakdown),
+            light_change_ms=summary.light_change_ms))
     return rows
 
 

@@ -119,6 +119,8 @@ def job_key(prepared: PreparedRun, *, code: str) -> str:
         "scene_params": dict(prepared.scene.params), "light": prepared.light.name,
         "views": len(prepared.scene.trajectory), "resolution": [prepared.width, prepared.height],
         "profile": prepared.profile.name, "reference": prepared.job.reference, "code": code}
+    if prepared.job.reference_bounces is not None:  # absent: the keys of older stores hold
+        identity["reference_bounces"] = int(prepared.job.reference_bounces)
     text = json.dumps(identity, sort_keys=True, default=str, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 

@@ -14,6 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from prtbench.api.errors import PrtbenchError
+from prtbench.cli.parsing import Parser
 
 #: subcommand -> (module under prtbench.cli, one line of help). The help is repeated here so
 #: that ``prtbench --help`` lists every command without importing any of them.
@@ -30,10 +31,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "analyze": ("analyze", "what a scene requires: bands, glossy, shadows, textures, bounces, "
                            "light changes"),
     "advise": ("advise", "the cheapest configuration meeting a target, verified by a run"),
+    "answer": ("answer", "what to use on a scene, in plain words, from the analysis, the "
+                         "advice and the store"),
     "pareto": ("pareto", "Pareto fronts over (error, cost) from the results store"),
     "report": ("report", "the static HTML comparison site, from the results store"),
     "table": ("table", "regenerate a paper table from our measurements"),
     "figure": ("figure", "regenerate a paper figure from our renders"),
+    "claims": ("claims", "every checkable claim of the papers: reproduced, contradicted, ... "
+                         "from the results store"),
     "regress": ("regress", "golden-metric regression of every method (smoke profile)"),
     "stability": ("stability", "every method at the extremes of its knobs, lights and scenes: "
                                "ok/degraded/refused/failed"),
@@ -51,8 +56,9 @@ def command_module(name: str):
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The parser; the arguments of ``command`` only (None: of every command)."""
-    parser = argparse.ArgumentParser(prog="prtbench", description=DESCRIPTION)
+    """The parser; the arguments of ``command`` only (None: of every command). Its errors
+    are one line, ``prtbench: error: …``, exit status 2 (:class:`prtbench.cli.parsing.Parser`)."""
+    parser = Parser(prog="prtbench", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, text) in COMMANDS.items():
         p = sub.add_parser(name, help=text, description=text)

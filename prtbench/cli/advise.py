@@ -1,4 +1,9 @@
-"""``prtbench advise``: the cheapest configuration meeting a target, verified by a run."""
+"""``prtbench advise``: the cheapest configuration meeting a target, verified by a run.
+
+Progress goes to stderr (each step -- loading the scene, analysis, pruning, screening, search,
+verification -- with its wall time, and each measured cell) unless ``--quiet``; the report goes to stdout and
+``--json`` records the step times (``steps``, ``total_s``).
+"""
 
 from __future__ import annotations
 
@@ -10,7 +15,9 @@ from prtbench.api import strict_json
 from prtbench.api.cache import atomic_path
 from prtbench.api.config import parse_overrides
 from prtbench.bench import outputs
-from prtbench.tradeoff.advise import advise, format_advice
+from prtbench.cli.parsing import integer
+from prtbench.tradeoff.advice_text import format_advice
+from prtbench.tradeoff.advise import advise
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -23,12 +30,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--profile", default="quick", help="profile of the answer (screening runs at smoke)")
     p.add_argument("--light-changes", default="none", help="how the lights will change (for the analysis)")
     p.add_argument("--method", action="append", help="only these methods (default: all)")
-    p.add_argument("--band-margin", type=int, default=2, help="SH bands searched above the required count")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--reference-bounces", type=integer("a whole number of bounces, 0 to 16"),
+                   default=1, metavar="N", help="bounces of the path reference every candidate "
+                   "is scored against (default 1)")
+    p.add_argument("--band-margin", type=integer("a whole number of SH bands"), default=2,
+                   help="SH bands searched above the required count")
+    p.add_argument("--workers", type=integer("a whole number of workers, 0 (serial, no Dask) or more"),
+                   default=None,
                    help="Dask workers of the screening runs (default: cores; 0: serial, no Dask)")
     p.add_argument("--json", default=None, help="write the answer as JSON here")
     p.add_argument("--results", default=None, help="results database of the verification run")
-    p.add_argument("--quiet", action="store_true", help="no per-cell progress lines")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr (each step with its wall time, each cell)")
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
 
 
@@ -41,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
                     scene_params=parse_overrides(args.scene_param or []),
                     results_path=Path(args.results) if args.results else None,
                     band_margin=args.band_margin, workers=args.workers,
-                    echo=not args.quiet)
+                    reference_bounces=args.reference_bounces, echo=not args.quiet)
     print(format_advice(advice))
     if args.json:
         with atomic_path(Path(args.json)) as tmp:

@@ -9,6 +9,7 @@ from prtbench.api.errors import PrtbenchError
 from prtbench.api.profiles import get_profile
 from prtbench.bench.outputs import check_cache
 from prtbench.bench.runner import parse_resolution, resolve_views
+from prtbench.cli.parsing import integer
 from prtbench.render.reference import render_references
 from prtbench.scene.registry import get_scene
 from prtbench.transport.lights import get_light
@@ -19,11 +20,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE",
                    help="scene builder parameter")
     p.add_argument("--variant", default="diffuse")
-    p.add_argument("--light", default=None)
-    p.add_argument("--views", type=int, default=None)
-    p.add_argument("--spp", type=int, default=None)
-    p.add_argument("--bounces", type=int, default=0)
-    p.add_argument("--res", default=None)
+    p.add_argument("--light", default=None, help="light name or .exr/.hdr path (default: the scene's)")
+    p.add_argument("--views", type=integer("a whole number of views, 1 up to the scene's"), default=None,
+                   help="number of trajectory views")
+    p.add_argument("--spp", type=integer("a whole number of samples per pixel, 1 or more"),
+                   default=None, help="samples per pixel (default: the profile's)")
+    p.add_argument("--bounces", type=integer("a whole number of bounces, 0 or more"), default=0,
+                   help="indirect bounces (0: direct light only)")
+    p.add_argument("--res", default=None, help="WxH (default: the profile's)")
     p.add_argument("--profile", default="quick")
 
 
@@ -32,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     scene = get_scene(args.scene, variant=args.variant, **parse_overrides(args.scene_param or []))
     light = get_light(args.light or scene.default_light)
     scene = resolve_views(scene, profile, args.views)  # the validator `run` uses
-    width, height = parse_resolution(args.res) if args.res else (profile.width, profile.height)
+    width, height = (parse_resolution(args.res) if args.res is not None
+                     else (profile.width, profile.height))
     if args.spp is not None and args.spp < 1:
         raise PrtbenchError(f"--spp {args.spp}; accepted: a positive integer")
     if args.bounces < 0:

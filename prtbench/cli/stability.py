@@ -42,6 +42,10 @@ def run(args: argparse.Namespace) -> int:
     outputs.check_folder("--reports", Path(args.reports))
     if args.json:
         outputs.check_file("--json", Path(args.json))
+        for option, folder in (("--reports", args.reports), ("--out", args.out)):
+            if folder:  # made before the JSON is written
+                outputs.check_file_clear_of("--json", args.json, folder_option=option,
+                                            folder=folder)
     if args.import_csv:
         _import(args, results, table_name(label))
         if not args.from_store:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from prtbench.api.config import parse_overrides
 from prtbench.api.errors import PrtbenchError
+from prtbench.cli.parsing import integer
 from prtbench.store.results import default_path
 from prtbench.tradeoff import grid
 from prtbench.tradeoff.sweep import retime_serial, run_cells
@@ -23,11 +24,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="knob fixed in every cell")
     p.add_argument("--light", default=None, help="light name(s), comma-separated")
     p.add_argument("--variant", default=None, help="material variant: diffuse or glossy")
-    p.add_argument("--views", type=int, default=None, help="number of trajectory views")
+    p.add_argument("--views", type=integer("a whole number of views, 1 up to the scene's"), default=None,
+                   help="number of trajectory views")
     p.add_argument("--scene-param", action="append", metavar="KEY=VALUE", help="scene builder parameter")
+    p.add_argument("--reference-bounces", type=integer("a whole number of bounces, 0 to 16"),
+                   default=None, metavar="N", help="bounces of the path reference, the same for "
+                   "every method (default: each method's bounces knob)")
     p.add_argument("--profile", default=None, help="smoke, quick or paper (default: the file's, else quick)")
-    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: cores; 0: serial, no Dask)")
-    p.add_argument("--worker-threads", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=integer("a whole number of workers, 0 (serial, no Dask) or more"),
+                   default=None, help="local Dask workers (default: cores; 0: serial, no Dask)")
+    p.add_argument("--worker-threads", type=integer("a whole number of threads per worker"),
+                   default=None, metavar="N",
                    help="tracing/llvmpipe threads per Dask worker (default: its share of the cores)")
     p.add_argument("--scheduler", default=None, help="existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--force", action="store_true", help="measure cells already in the store again")
@@ -39,7 +46,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     given = [o for o in ("scene", "method", "grid", "light", "set", "scene_param")
              if getattr(args, o)] + (["variant"] if args.variant is not None else []) + (
-             ["views"] if args.views is not None else [])
+             ["views"] if args.views is not None else []) + (
+             ["reference_bounces"] if args.reference_bounces is not None else [])
     if args.file and given:
         raise PrtbenchError(f"sweep: both a file and --{given[0].replace('_', '-')}; accepted: "
                             f"a sweep file, or --scene/--method/--grid options")
@@ -47,10 +55,12 @@ def run(args: argparse.Namespace) -> int:
         sweep = grid.load_sweep(args.file, profile=args.profile)
     elif args.scene and args.method:
         sweep = grid.from_options(
-            scenes=grid.split_values(args.scene), methods=grid.split_values(args.method),
+            scenes=grid.split_values(args.scene, option="--scene"),
+            methods=grid.split_values(args.method, option="--method"),
             grid=args.grid or [], fixed=parse_overrides(args.set or []),
-            lights=grid.split_values(args.light) if args.light else [],
+            lights=grid.split_values(args.light, option="--light") if args.light else [],
             variant=args.variant or "diffuse", views=args.views,
+            reference_bounces=args.reference_bounces,
             scene_params=parse_overrides(args.scene_param or []), profile=args.profile or "quick")
     else:
         raise PrtbenchError("sweep: no grid; accepted: a sweep file (e.g. sweeps/plants-all.toml) "

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import os
 import shutil
 import sys
@@ -32,6 +31,7 @@ from prtbench.site import data as data_mod
 from prtbench.site import plot as plot_mod
 from prtbench.site import stability as stability_mod
 from prtbench.site.images import STOPS, ImageMaker, stop_name
+from prtbench.site.panels import exact, fmt
 from prtbench.store import measurements
 
 #: Marks a folder as a site this command wrote (so rebuilding may replace it).
@@ -49,22 +49,6 @@ class BuildSummary:
     pages: list[str]
     images_made: int
     images_reused: int
-
-
-def fmt(value, digits: int = 4) -> str:
-    """How the site prints a number: 4 significant digits, ``—`` for a missing value."""
-    if value is None or isinstance(value, str):
-        return "—" if value in (None, "") else value
-    if isinstance(value, bool):
-        return str(value)
-    if isinstance(value, int):
-        return str(value)
-    value = float(value)
-    if not math.isfinite(value):
-        return "—"
-    if abs(value) >= 1e5 or (value != 0 and abs(value) < 1e-3):
-        return f"{value:.{digits - 1}e}"
-    return f"{value:.{digits}g}"
 
 
 def _cell(text: str) -> str:
@@ -85,7 +69,7 @@ def _environment():
                              autoescape=jinja2.select_autoescape(["html"]),
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
     env.filters["num"] = fmt
-    env.filters["exact"] = lambda v: "" if v is None else repr(float(v)) if isinstance(v, float) else str(v)
+    env.filters["exact"] = exact
     env.filters["cellfmt"] = _cell
     env.filters["mib"] = lambda v: None if v is None else float(v) / 2**20
     return env
@@ -159,12 +143,11 @@ def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: boo
         viewer = _page_images(page, maker)
         plots = []
         for panel in page.panels:
-            members = [c for c in page.configurations if c.panel == panel]
-            title = (f"{page.scene} / {page.light}: {panel[0]}, {panel[1]}×{panel[2]}, {page.profile} "
-                     f"(filled: on the front; hollow: dominated)")
-            plots.append({"id": f"pareto-{data_mod.slug(*map(str, panel))}", "panel": panel,
-                          "figure": plot_mod.figure(members, title=title),
-                          "points": len(plot_mod.placed(members)), "members": len(members)})
+            plots.append({"id": f"pareto-{panel.id}", "panel": panel,
+                          "figure": plot_mod.figure(panel.configurations,
+                                                    title=f"{panel.title}, {page.profile}"),
+                          "points": len(plot_mod.placed(panel.configurations)),
+                          "members": len(panel.configurations)})
         html = env.get_template("scene.html").render(
             page=page, viewer=viewer, plots=plots,
             viewer_images={c["id"]: c["views"] for c in viewer["configs"]}, stops=STOPS, site=site,
@@ -250,18 +233,19 @@ def _copy(source: Path, site: Path, target: str) -> str:
 
 
 def _overview(site: data_mod.SiteData) -> list[dict]:
-    """Index rows: per scene page and method, its best configuration by masked PSNR."""
+    """Index rows: per scene page, panel and method, its best configuration by masked PSNR
+    (errors against different references or view sets are never compared)."""
     rows = []
     for page in site.pages:
-        by_method: dict[str, list] = {}
-        for conf in page.configurations:
-            if conf.point is not None:
+        for panel in page.panels:
+            by_method: dict[str, list] = {}
+            for conf in panel.configurations:
                 by_method.setdefault(conf.method, []).append(conf)
-        for method, confs in sorted(by_method.items()):
-            best = max(confs, key=lambda c: c.point.error)
-            flips = [c.flip for c in confs if c.flip is not None]
-            rows.append({"page": page, "method": method, "best": best, "configs": len(confs),
-                         "best_flip": min(flips) if flips else None})
+            for method, confs in sorted(by_method.items()):
+                best = max(confs, key=lambda c: c.point.error)
+                flips = [c.flip for c in confs if c.flip is not None]
+                rows.append({"page": page, "panel": panel, "method": method, "best": best,
+                             "configs": len(confs), "best_flip": min(flips) if flips else None})
     return rows
 
 

@@ -1,13 +1,14 @@
 """What the comparison site shows, read from the results store and the cache only.
 
-A *scene page* is one (scene, light, profile) of the store. Its *configurations* are the
-distinct (method, config, scene parameters, variant, resolution) measured there against the
-path reference; each is the group of its stored rows. The numbers a page prints are stored
-values (one row's metric, frame time, memory) or the means :mod:`prtbench.tradeoff.pareto`
-takes of them (masked PSNR clipped at the reference noise ceiling, masked FLIP, frame time of
-the rows measured with one worker), so the site agrees with ``prtbench pareto`` to the digit.
-Rows of other statuses (degenerate, failed) and rows compared with a method reference are
-listed with their reason, never plotted.
+A *scene page* is one (scene, light, profile) of the store, laid out in the ranking
+protocol's panels (docs/PROTOCOL.md, :mod:`.panels`): one reference and one view set per
+panel, each with its own plot, table and front. The numbers a page prints are stored values
+(one row's metric, frame time, memory) or the means and intervals
+:func:`prtbench.tradeoff.front.collect_points` takes of them (masked PSNR clipped at the
+reference noise ceiling, masked FLIP, frame time of the rows measured with one worker), so the
+site agrees with ``prtbench pareto`` to the digit. Rows of other statuses (degenerate,
+failed), rows compared with a method reference, diagnostic configurations and ``trained``
+rows are listed with their reason, never plotted.
 
 Images come from the cache (:mod:`prtbench.render.renders` for each view's render and the path
 reference it was compared with); a row whose images are gone is shown without them.
@@ -15,23 +16,21 @@ reference it was compared with); a row whose images are gone is shown without th
 
 from __future__ import annotations
 
-import json
 import re
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from prtbench.api import config as config_mod
 from prtbench.api.errors import PrtbenchError
-from prtbench.api.method import METHODS
 from prtbench.api.profiles import PROFILES
 from prtbench.bench.reproduction import FIGURES, TABLES
 from prtbench.io.imageio import read_exr_metadata
 from prtbench.render import renders
+from prtbench.site.panels import Configuration, Panel, page_panels
 from prtbench.site.stability import collect as stability_pages
 from prtbench.store import measurements
 from prtbench.store.results import ResultsStore
-from prtbench.tradeoff.front import collect_points, mark_fronts, noise_ceiling_db
+from prtbench.tradeoff.front import noise_ceiling_db
 
 #: Metrics a configuration's view table prints, in order.
 VIEW_METRICS = ("psnr_masked", "ssim_masked", "flip_masked", "psnr")
@@ -46,74 +45,15 @@ def slug(*parts: str) -> str:
 
 
 @dataclass
-class ViewEntry:
-    """One stored view of a configuration: the row and where its images are cached.
-
-    Attributes
-    ----------
-    row : prtbench.store.results.ResultRow
-        The newest row of this view (a re-timed cell has several; their metrics agree).
-    render, reference : Path or None
-        The cached linear render and the reference EXR it was compared with.
-    exposure : float or None
-        The scene's display exposure, from the render's header.
-    """
-
-    view: int
-    row: object
-    render: Path | None = None
-    reference: Path | None = None
-    exposure: float | None = None
-
-
-@dataclass
-class Configuration:
-    """One measured configuration on a scene page."""
-
-    id: str
-    method: str
-    config: dict
-    knobs: str
-    scene_params: dict
-    variant: str
-    width: int
-    height: int
-    rows: list
-    views: list[ViewEntry] = field(default_factory=list)
-    #: The Pareto point of the masked-PSNR / frame-ms front (None: nothing finite to place).
-    point: object = None
-    #: Mean masked FLIP as the FLIP front computes it (None: no finite value).
-    flip: float | None = None
-    memory_bytes: int | None = None
-    precompute_s: float | None = None
-
-    #: The scene parameters that differ between the page's configurations (the rest is noise).
-    varying_params: dict = field(default_factory=dict)
-
-    @property
-    def description(self) -> str:
-        """Knobs, then the scene parameters that tell it apart from its page's others."""
-        params = ", ".join(f"{k}={v}" for k, v in sorted(self.varying_params.items()))
-        return f"{self.knobs}{'; ' + params if params else ''}"
-
-    @property
-    def label(self) -> str:
-        return f"{self.method}: {self.description}"
-
-    @property
-    def panel(self) -> tuple[str, int, int]:
-        return (self.variant, self.width, self.height)
-
-
-@dataclass
 class ScenePage:
-    """One (scene, light, profile) of the store."""
+    """One (scene, light, profile) of the store, in the protocol's panels (:mod:`.panels`)."""
 
     scene: str
     light: str
     profile: str
-    configurations: list[Configuration]
-    #: Rows not plotted (degenerate, failed, method reference), one line each.
+    panels: list[Panel]
+    #: Rows and configurations not plotted (degenerate, failed, method reference, diagnostic,
+    #: trained), one line each with the reason.
     unplotted: list[str]
     rows: list
 
@@ -122,8 +62,9 @@ class ScenePage:
         return f"scene-{slug(self.scene, self.light, self.profile)}.html"
 
     @property
-    def panels(self) -> list[tuple[str, int, int]]:
-        return sorted({c.panel for c in self.configurations})
+    def configurations(self) -> list[Configuration]:
+        """Every panel's configurations, in page order (one per configuration and panel)."""
+        return [c for panel in self.panels for c in panel.configurations]
 
 
 @dataclass
@@ -154,77 +95,14 @@ class SiteData:
     stability: list = field(default_factory=list)
 
 
-def _knobs(method: str, config: dict, profile: str) -> str:
-    """The knobs that differ from the method's config in ``profile``, ``k=v`` (the whole
-    config if the method is no longer registered), as the Pareto reports print them."""
-
-    try:
-        defaults = config_mod.to_dict(METHODS.get(method).make_config({}, profile=profile))
-    except PrtbenchError:  # a method no longer registered, or a profile it rejects
-        defaults = {}
-    changed = {k: v for k, v in sorted(config.items()) if defaults.get(k, object()) != v}
-    return ", ".join(f"{k}={v}" for k, v in changed.items()) or "(profile defaults)"
-
-
-def _config_key(row) -> tuple:
-    return (row.method, json.dumps(row.config, sort_keys=True),
-            json.dumps(row.scene_params or {}, sort_keys=True), row.scene_variant,
-            int(row.width), int(row.height))
-
-
-def _views(rows: list, cache: Path | None) -> list[ViewEntry]:
-    newest: dict[int, object] = {}
-    for row in rows:  # insertion order: the last row of a view wins, if its images exist
-        entry = renders.load(row.run_id, row.view, root=cache) if row.run_id else None
-        if entry is not None or row.view not in newest:
-            newest[row.view] = (row, entry)
-    out = []
-    for view in sorted(newest):
-        row, entry = newest[view]
-        out.append(ViewEntry(view=view, row=row,
-                             render=entry.path if entry is not None else None,
-                             reference=entry.reference_path if entry is not None else None,
-                             exposure=entry.exposure if entry is not None else None))
-    return out
-
-
 def _page(scene: str, light: str, profile: str, rows: list, cache: Path | None) -> ScenePage:
-    plotted = [r for r in rows if r.status == "ok" and r.reference_kind == "path"]
-    chosen = {id(r) for r in plotted}
+    usable = {id(r) for r in rows if r.status == "ok" and r.reference_kind == "path"}
     unplotted = [f"{r.method} view {r.view} ({r.status}, reference {r.reference_kind}): "
                  f"{r.status_reason or 'compared with a method, not the path reference'}"
-                 for r in rows if id(r) not in chosen]
-    groups: dict[tuple, list] = defaultdict(list)
-    for row in plotted:
-        groups[_config_key(row)].append(row)
-    configurations = []
-    points = []
-    for number, key in enumerate(sorted(groups)):
-        group = groups[key]
-        method, config_json, params_json, variant, width, height = key
-        config = json.loads(config_json)
-        psnr_points, _ = collect_points(group, error="psnr_masked", cost="frame_ms")
-        flip_points, _ = collect_points(group, error="flip_masked", cost="frame_ms")
-        memory = [r.memory_bytes for r in group if r.memory_bytes is not None]
-        precompute = [r.precompute_s for r in group if r.precompute_s is not None]
-        conf = Configuration(
-            id=f"c{number:03d}", method=method, config=config, knobs=_knobs(method, config, profile),
-            scene_params=json.loads(params_json), variant=variant, width=width, height=height,
-            rows=group, views=_views(group, cache),
-            point=psnr_points[0] if psnr_points else None,
-            flip=flip_points[0].error if flip_points else None,
-            memory_bytes=memory[-1] if memory else None,
-            precompute_s=precompute[-1] if precompute else None)
-        if conf.point is not None:
-            points.append(conf.point)
-        configurations.append(conf)
-    mark_fronts(points, error="psnr_masked")
-    keys = {k for c in configurations for k in c.scene_params}
-    varying = {k for k in keys if len({json.dumps(c.scene_params.get(k)) for c in configurations}) > 1}
-    for conf in configurations:
-        conf.varying_params = {k: v for k, v in conf.scene_params.items() if k in varying}
-    return ScenePage(scene=scene, light=light, profile=profile, configurations=configurations,
-                     unplotted=unplotted, rows=rows)
+                 for r in rows if id(r) not in usable]
+    panels, left_out = page_panels(rows, cache=cache)
+    return ScenePage(scene=scene, light=light, profile=profile, panels=panels,
+                     unplotted=unplotted + left_out, rows=rows)
 
 
 def _reproduced(results_path: Path) -> tuple[list[Reproduced], list[str]]:
@@ -265,7 +143,9 @@ def collect(results_path: Path, *, cache: Path | None = None) -> SiteData:
         by_page[(row.scene, row.light, row.profile)].append(row)
     pages = [_page(scene, light, profile, part, cache)
              for (scene, light, profile), part in sorted(by_page.items())]
-    pages = [p for p in pages if p.configurations]
+    # A page whose ok rows are all left out (diagnostic, trained) still says why.
+    pages = [p for p in pages
+             if any(r.status == "ok" and r.reference_kind == "path" for r in p.rows)]
     if not pages:
         raise PrtbenchError(f"results store '{results_path}' has no ok rows against the path "
                             f"reference; {FILL_COMMAND}")

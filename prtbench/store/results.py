@@ -38,7 +38,8 @@ PROFILES = ("smoke", "quick", "paper")
 #: non-finite masked metric: see status_reason); failed: the measurement did not complete.
 STATUSES = ("ok", "degenerate", "failed")
 _BUSY_TIMEOUT_S = 60.0
-_JSON_FIELDS = ("config", "view_json", "metrics", "scene_params")
+_JSON_FIELDS = ("config", "view_json", "metrics", "scene_params", "frame_components",
+                "memory_breakdown")
 
 
 def _utc_now() -> str:
@@ -112,7 +113,30 @@ class ResultRow:
         How many workers measured concurrently when this row was measured (1 for a plain
         ``prtbench run``): concurrent workers on few cores distort frame times.
     cell_key : str
-        The sweep cell this row measures (:mod:`prtbench.tradeoff`), empty outside sweeps.
+        The key of the job this row measures (:func:`prtbench.bench.submit.job_key`).
+    reference_bounces : int or None
+        Interreflection bounces of the path reference (None: a method reference, or unknown).
+    panel : str
+        Which rows may be ranked together (docs/PROTOCOL.md): scene, variant, light,
+        resolution, the view set and the reference (kind, bounces, spp).
+    light_class : str
+        ``relight`` (any light), ``family`` (lights of a declared family) or ``fixed`` (one
+        baked light), for this config (:meth:`prtbench.api.method.Method.light_class_of`).
+    split : str
+        ``held-out`` (the light and view were never trained or fitted on), ``in-family``
+        (the light is of the family the method fitted) or ``trained``.
+    psnr_masked_lo, psnr_masked_hi, flip_masked_lo, flip_masked_hi : float or None
+        The 95 % interval of the masked metric allowed by the reference's Monte Carlo noise
+        (:func:`prtbench.bench.intervals.metric_interval`).
+    frame_components : dict of str to float
+        Milliseconds of each part of the frame (GPU draw, CPU relighting, readback, network,
+        ...), medians over the timed frames.
+    memory_breakdown : dict of str to int
+        Bytes of each resident part (:meth:`prtbench.api.method.Renderer.memory_breakdown`);
+        they sum to ``memory_bytes``.
+    light_change_ms : float or None
+        The work a new light costs before its first frame (SH projection, per-light matrices,
+        cubemap resampling, ...), timed from scratch; None where the method does none.
     """
 
     method: str
@@ -149,6 +173,17 @@ class ResultRow:
     workers: int = 1
     cell_key: str = ""
     load_average: float | None = None
+    reference_bounces: int | None = None
+    panel: str = ""
+    light_class: str = ""
+    split: str = ""
+    psnr_masked_lo: float | None = None
+    psnr_masked_hi: float | None = None
+    flip_masked_lo: float | None = None
+    flip_masked_hi: float | None = None
+    frame_components: dict = field(default_factory=dict)
+    memory_breakdown: dict = field(default_factory=dict)
+    light_change_ms: float | None = None
 
     def __post_init__(self) -> None:
         for name in _JSON_FIELDS:  # rows read back from text, or built by hand from JSON
@@ -434,58 +469,3 @@ def git_sha(cwd: str | Path | None = None) -> str:
     status = git("status", "--porcelain", "--untracked-files=no", "--", ":(top)",
                  ":(top,exclude)reports")
     return f"{sha}+dirty" if status else sha
-
-
-DEFAULT_COLUMNS = ("method", "scene", "light", "view", "size", "profile", "psnr", "psnr_masked",
-                   "ssim_masked", "flip_masked", "frame_ms", "memory_bytes", "status")
-
-
-def _format_value(value) -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, bool) or isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return f"{value:.0f}" if abs(value) >= 1e5 else f"{value:.4g}"
-    if isinstance(value, Mapping):
-        return _to_json(value)
-    return str(value)
-
-
-def format_rows(rows: Sequence[ResultRow], *, columns: Sequence[str] | None = None) -> str:
-    """A plain-text table of ``rows`` for ``prtbench results``.
-
-    ``columns`` name row fields, ``size`` (``WxH``) or metric keys (``psnr``, ``ssim_masked``);
-    a metric a row lacks prints ``-``. Numbers are right-aligned; inf prints as ``inf``.
-    """
-    columns = list(columns or DEFAULT_COLUMNS)
-    metric_keys = {key for row in rows for key in row.metrics}
-    known = set(COLUMNS) | {"size"} | metric_keys | set(DEFAULT_COLUMNS)
-    for column in columns:
-        if column not in known:
-            raise UnknownNameError("results column", column, known)
-    if not rows:
-        return "(no results)"
-
-    def cell(row: ResultRow, column: str):
-        if column == "size":
-            return f"{row.width}x{row.height}"
-        if column in COLUMNS:
-            return getattr(row, column)
-        value = row.metrics.get(column)
-        return float(value) if value is not None else None
-
-    raw = [[cell(row, column) for column in columns] for row in rows]
-    numeric = [all(isinstance(r[i], (int, float)) or r[i] is None for r in raw) for i in range(len(columns))]
-    text = [[_format_value(v) for v in r] for r in raw]
-    widths = [max(len(columns[i]), *(len(r[i]) for r in text)) for i in range(len(columns))]
-
-    def line(cells: Sequence[str]) -> str:
-        return "  ".join(c.rjust(w) if num else c.ljust(w)
-                         for c, w, num in zip(cells, widths, numeric)).rstrip()
-
-    return "\n".join([line(columns), line(["-" * w for w in widths]), *(line(r) for r in text)])

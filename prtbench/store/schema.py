@@ -1,4 +1,4 @@
-"""The results store's schema: versions, the foreign-file checks and the migrations (2 → … → 5).
+"""The results store's schema: versions, the foreign-file checks and the migrations (2 → … → 6).
 
 :mod:`prtbench.store.results` owns the rows; this module owns what makes an SQLite file *ours*:
 a ``meta`` table holding ``schema_version`` and a ``renders`` table with our columns. Other
@@ -15,13 +15,16 @@ from pathlib import Path
 from prtbench.api import strict_json
 from prtbench.api.errors import InvalidInputError, PrtbenchError
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 #: Older schema versions this prtbench reads and migrates.
-MIGRATABLE = (2, 3, 4)
+MIGRATABLE = (2, 3, 4, 5)
 #: Columns added after schema 2, with the values old rows get. Schema 3: the status columns;
 #: schema 4: what the trade-off needs (covered pixels and vertex count for the operation-count
 #: cost model, the sweep's worker count and cell key); schema 5: the machine's load average
-#: while timing (old rows: unknown).
+#: while timing (old rows: unknown); schema 6: the protocol (docs/PROTOCOL.md): the reference's
+#: bounces, the panel, the method's light class and the row's split, the intervals of the
+#: masked metrics, the frame's components, the resident memory's parts and the per-light work
+#: (old rows: unknown, which rankings treat as not meeting the protocol).
 ADDED_COLUMNS = {"status": "TEXT NOT NULL DEFAULT 'ok'",
                  "status_reason": "TEXT NOT NULL DEFAULT ''",
                  "precompute_rebuilt": "INTEGER NOT NULL DEFAULT 0",
@@ -29,7 +32,18 @@ ADDED_COLUMNS = {"status": "TEXT NOT NULL DEFAULT 'ok'",
                  "scene_vertices": "INTEGER",
                  "workers": "INTEGER NOT NULL DEFAULT 1",
                  "cell_key": "TEXT NOT NULL DEFAULT ''",
-                 "load_average": "REAL"}
+                 "load_average": "REAL",
+                 "reference_bounces": "INTEGER",
+                 "panel": "TEXT NOT NULL DEFAULT ''",
+                 "light_class": "TEXT NOT NULL DEFAULT ''",
+                 "split": "TEXT NOT NULL DEFAULT ''",
+                 "psnr_masked_lo": "REAL",
+                 "psnr_masked_hi": "REAL",
+                 "flip_masked_lo": "REAL",
+                 "flip_masked_hi": "REAL",
+                 "frame_components": "TEXT NOT NULL DEFAULT '{}'",
+                 "memory_breakdown": "TEXT NOT NULL DEFAULT '{}'",
+                 "light_change_ms": "REAL"}
 _SQLITE_HEADER = b"SQLite format 3\x00"
 
 
@@ -87,7 +101,7 @@ def render_columns(conn: sqlite3.Connection, path: Path, *, version: int,
 
 def migrate(conn: sqlite3.Connection, *, json_fields: Sequence[str],
             to_json: Callable[[object], str]) -> None:
-    """Schema 2, 3 or 4 → 5 inside the caller's transaction.
+    """Schema 2, 3, 4 or 5 → 6 inside the caller's transaction.
 
     Adds the missing columns (old rows 'ok', one worker, no cell key, unknown coverage) and,
     for schema 2, rewrites JSON holding NaN/Infinity tokens as

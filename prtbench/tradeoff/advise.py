@@ -1,16 +1,22 @@
 """``prtbench advise``: the cheapest configuration that meets a target, verified by a real run.
 
-1. **Prune** (:mod:`.search_space`): from the scene analysis, drop the methods and knob
-   ranges that cannot model what the scene requires or model more than it needs; every
-   pruned method is reported with its reason.
+1. **Prune** (:mod:`.search_space`): from the scene analysis, drop the methods that cannot
+   model what the scene requires and the knob steps that model more than it needs; every
+   pruned method is reported with its reason. The analysis never drops a cheaper step: it
+   only says where each method's search starts.
 2. **Search adaptively** (:mod:`.search`), never the whole grid: a monotone lattice search
-   per method (a measurement that misses an accuracy bound rules out everything below it,
-   one that meets all rules out everything above it), about O(log n) runs per knob. Over
-   fidelity this is **successive halving**: when the requested profile is larger than
-   ``smoke`` and more than two methods remain, all are first searched at ``smoke``, the
-   better ``keep_fraction`` of them (at least two; by target shortfall, then cost) go on to
-   the requested profile, where each search starts from its ``smoke`` optimum and stays
-   near it unless a cheaper feasible candidate may lie further out.
+   per method (a measurement that clearly misses an accuracy bound rules out everything
+   below it, one that meets all or already costs as much as the best found rules out
+   everything above it), about O(log n) runs per knob. It ends only when measurements decide
+   every candidate: each one left unmeasured either clearly misses the target or costs at
+   least as much as the best one meeting it. The analysis orders (each method starts where it
+   points), it never ends a search. Over fidelity this is **successive halving**: when the
+   requested profile is larger than ``smoke`` and more than two methods remain, all are
+   first searched at ``smoke``, and the better ``keep_fraction`` of them (at least two) go on
+   to the requested profile, ranked by the smoke cost of their cheapest candidate that meets
+   the target or misses it only narrowly (a cheap near miss is not dropped for a dear hit),
+   then the rest by shortfall. There each search starts from that candidate and goes
+   wherever the measurements leave something undecided.
 3. **Verify**: the winner is run again in the requested profile with its rows stored in the
    results store, and the answer reports that run's numbers; the advisor never answers from
    a model or a screening run alone. If the verified run misses, the runner-up is verified.
@@ -19,6 +25,10 @@ A target nothing reaches is not an error: :class:`Advice` holds the closest conf
 (least relative shortfall) and ``hint`` says what would be needed, from the knobs that sat at
 the limit of their range and the analysis; the CLI exits 1.
 
+Each step (scene, analysis, pruning, screening, search, verification) is timed; with
+``echo`` it says what it does and how long it took on stderr, and :attr:`Advice.steps`
+keeps the times.
+
 ``analysis``, ``evaluate`` and ``cost_fn`` are injected (tests pass synthetic ones); the
 defaults are :func:`prtbench.tradeoff.analyze.analyze_scene` and
 :func:`prtbench.tradeoff.cost.cost_value`.
@@ -26,6 +36,7 @@ defaults are :func:`prtbench.tradeoff.analyze.analyze_scene` and
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -50,13 +61,19 @@ from prtbench.tradeoff.search import (
     CellResult,
     Evaluation,
     Judge,
-    best_per_method,
     brief,
+    clear_miss,
     fmt,
     normalise,
     search,
 )
-from prtbench.tradeoff.search_space import Candidate, SearchSpace, analysis_json, build_space
+from prtbench.tradeoff.search_space import (
+    Candidate,
+    SearchSpace,
+    analysis_json,
+    build_space,
+)
+from prtbench.tradeoff.steps import Step, StepClock
 from prtbench.transport.lights import get_light
 
 
@@ -76,16 +93,21 @@ class Advice:
     constraints: list[Constraint]
     history: list[Evaluation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    steps: list[Step] = field(default_factory=list)
+    total_s: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         """``{"method", "config", "metrics", "frame_ms", "memory_bytes", "precompute_s",
-        "cost_kind", "evaluated", "grid_size", "runner_up", "pruned", "analysis"}``."""
+        "cost_kind", "evaluated", "grid_size", "runner_up", "pruned", "analysis", "steps",
+        "total_s"}``; ``steps`` is one ``{"step", "seconds", "cells", "profile", "detail"}``
+        per step, in order."""
         out = _evaluation_json(self.choice)
         out.pop("cost")
         return {**out, "cost_kind": self.cost_kind, "evaluated": self.evaluated,
                 "grid_size": self.grid_size,
                 "runner_up": _evaluation_json(self.runner_up) if self.runner_up else None,
-                "pruned": list(self.pruned), "analysis": self.analysis}
+                "pruned": list(self.pruned), "analysis": self.analysis,
+                "steps": [s.to_json() for s in self.steps], "total_s": round(self.total_s, 3)}
 
 
 def _evaluation_json(e: Evaluation) -> dict[str, Any]:
@@ -202,7 +224,8 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
            cost_fn: Callable[[Mapping, str], float] | None = None,
            verify: Callable | None = None, methods: Sequence[str] | None = None,
            results_path: Path | None = None, band_margin: int = 2, keep_fraction: float = 0.5,
-           workers: int | None = None, echo: bool = False) -> Advice:
+           workers: int | None = None, reference_bounces: int = 1,
+           echo: bool = False) -> Advice:
     """Recommend the cheapest configuration of any method that meets ``target`` within ``budget``.
 
     Parameters
@@ -217,6 +240,9 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         The profile of the answer (searches start at ``smoke`` when it is larger).
     variant, light_changes : str
         Material variant; how the lights will change (passed to the analysis).
+    reference_bounces : int
+        Bounces of the one path reference every candidate is scored against
+        (docs/PROTOCOL.md: one reference per comparison; default 1, as the sweeps).
     scene_params : mapping, optional
         Scene builder parameters (``--scene-param``; a file scene's ``scale``/``up``/``ground``),
         checked when the scene is built and passed to every evaluated cell.
@@ -267,13 +293,17 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     SCENES.check(scene)
     for name in methods or ():
         METHODS.check(name)
-    scene_params = dict(scene_params or {})
-    scene_obj = get_scene(scene, variant=variant, **scene_params)
-    light_obj = get_light(light or scene_obj.default_light)
-    cost_fn = cost_fn or cost_value
     if verify is None:
         outputs.check_results_store("--results", results_path or default_path())
         outputs.check_cache()
+    scene_params = dict(scene_params or {})
+    cost_fn = cost_fn or cost_value
+    clock = StepClock(echo=echo)
+    # The scene's and the light's errors are the user's input: said as one line, no progress.
+    with clock.step("scene", f"loading {scene} and its light", announce=False) as step:
+        scene_obj = get_scene(scene, variant=variant, **scene_params)
+        light_obj = get_light(light or scene_obj.default_light)
+        step.detail = f"{_scene_size(scene_obj)}, light {light_obj.name}"
     # The search runs its candidates on Dask workers (one per core), each method's chain as
     # soon as a worker is free; the verification run runs alone in this process, so its
     # stored frame times are taken on a quiet machine. Frame times measured side by side are
@@ -285,17 +315,26 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         cells, profile=profile, results_path=results_path, store=True))
 
     try:
-        if analysis is None:
-            analysis = analyze_scene(scene_obj, light_obj, light_changes=light_changes)
-        space = build_space(scene_obj, analysis, profile=profile, methods=methods,
-                            band_margin=band_margin)
+        with clock.step("analysis", f"what {scene} under {light_obj.name} requires") as step:
+            if analysis is None:
+                analysis = analyze_scene(scene_obj, light_obj, light_changes=light_changes,
+                                         progress=echo)
+            else:
+                step.detail = "given by the caller; "
+            step.detail += _analysis_text(analysis)
+        with clock.step("pruning", "methods and knob ladders from the analysis") as step:
+            space = build_space(scene_obj, analysis, profile=profile, methods=methods,
+                                band_margin=band_margin)
+            step.detail = (f"{space.size} candidates over {len(space.methods)} methods, "
+                           f"{len(space.pruned)} methods pruned")
         if not space.methods:
             raise PrtbenchError("no method can model this scene within the analysis' requirements: "
                                 + "; ".join(f"{p['method']}: {p['why']}" for p in space.pruned))
 
         def cell(c: Candidate) -> Job:
             return Job(method=c.method, scene=scene, label={"advise": c.label()}, variant=variant,
-                        light=light, overrides=c.overrides, scene_params=scene_params)
+                        light=light, overrides=c.overrides, scene_params=scene_params,
+                        reference_bounces=reference_bounces)
 
         pool = _CandidatePool(JobPool(screening), cell) if screening is not None else None
 
@@ -309,26 +348,36 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
         names = [m.method for m in space.methods]
         history, notes, pruned = [], [], list(space.pruned)
         starts: dict[str, Candidate] = {}
+        runs = {"pool": pool} if pool else {"run_batch": run_batch}
         if profile != "smoke" and len(names) > 2:  # successive halving over fidelity
-            screen = search(space, names, profile="smoke", judge=judge, echo=echo,
-                            **({"pool": pool} if pool else {"run_batch": run_batch}))
-            history += screen
-            best = best_per_method(screen)
-            ranked = sorted(best.values(), key=Evaluation.key)
-            keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
-            kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
-            for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
-                pruned.append({"method": e.candidate.method, "why": (
-                    f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
-                    + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
-            names = [e.candidate.method for e in kept]
-            starts = {e.candidate.method: e.candidate for e in kept}
+            with clock.step("screening", f"{len(names)} methods at the smoke profile",
+                            profile="smoke") as step:
+                screen = search(space, names, profile="smoke", judge=judge, echo=echo, **runs)
+                history += screen
+                best = _screening_best(screen)
+                ranked = sorted(best.values(), key=lambda e: _screening_key(e))
+                keep = max(min(2, len(ranked)), math.ceil(keep_fraction * len(names)))
+                kept = [e for e in ranked[:keep] if e.row is not None] or ranked[:1]
+                for rank, e in enumerate(ranked[len(kept):], start=len(kept) + 1):
+                    pruned.append({"method": e.candidate.method, "why": (
+                        f"screened out at the smoke profile (rank {rank} of {len(ranked)}): "
+                        + (brief(e, judge) if e.row is not None else f"failed ({e.error})"))})
+                names = [e.candidate.method for e in kept]
+                starts = {e.candidate.method: e.candidate for e in kept}
+                step.cells, step.detail = len(screen), f"kept {', '.join(names)}"
             notes.append(f"smoke screening: {len(screen)} cells over {len(best)} methods; kept "
                          f"{', '.join(names)}")
-        final = search(space, names, profile=profile, judge=judge,
-                       **({"pool": pool} if pool else {"run_batch": run_batch}),
-                       starts=starts, echo=echo)
-        history += final
+        # The screening optimum only orders the final search (it is measured first); the
+        # search may go anywhere in the method's space and stops only where measurements
+        # decide every candidate left (search._decided): each one unmeasured either clearly
+        # misses an accuracy bound or costs at least as much as the best meeting the target.
+        final_space = SearchSpace([dataclasses.replace(m, start=starts.get(m.method, m.start))
+                                   for m in space.methods], space.pruned)
+        with clock.step("search", f"{len(names)} methods at the {profile} profile",
+                        profile=profile) as step:
+            final = search(final_space, names, profile=profile, judge=judge, **runs, echo=echo)
+            history += final
+            step.cells = len(final)
     finally:
         if screening is not None:
             screening.close()
@@ -348,62 +397,70 @@ def advise(scene: str, light: str | None = None, *, target: str | Sequence[Const
     # Verify: the answer's numbers are those of a real, stored run in the requested profile.
     verified = None
     tried = [ranked[0]] + ([r] if (r := runner_up_of(ranked[0])) is not None and r.feasible else [])
-    for pick in tried:
-        result = normalise(list(verify([cell(pick.candidate)], profile=profile))[0])
-        verified = judge(pick.candidate, profile, result)
-        if verified.feasible or not pick.feasible:
-            break
-        notes.append(f"verification of {pick.candidate.method} {pick.candidate.label()} missed "
-                     f"({brief(verified, judge)}); trying the runner-up")
+    with clock.step("verification", f"{ranked[0].candidate.method} "
+                    f"{ranked[0].candidate.label()}, stored", profile=profile) as step:
+        for pick in tried:
+            result = normalise(list(verify([cell(pick.candidate)], profile=profile))[0])
+            verified = judge(pick.candidate, profile, result)
+            step.cells += 1
+            if verified.feasible or not pick.feasible:
+                break
+            notes.append(f"verification of {pick.candidate.method} {pick.candidate.label()} "
+                         f"missed ({brief(verified, judge)}); trying the runner-up")
+        step.detail = f"{verified.candidate.method} {verified.candidate.label()}: " + brief(
+            verified, judge)
     if verified.row is None:
         raise PrtbenchError(f"the verification run of {verified.candidate.method} "
                             f"{verified.candidate.label()} failed: {verified.error}")
+    clock.say(f"total: {clock.total:.1f} s")
     met = verified.feasible
     hint = "" if met else _hint(verified, space, judge, final)
     return Advice(choice=verified, met=met, hint=hint, cost_kind=cost, evaluated=len(history),
                   grid_size=space.size, runner_up=runner_up_of(verified),
                   pruned=pruned, analysis=analysis_json(analysis), constraints=constraints,
-                  history=history, notes=notes)
+                  history=history, notes=notes, steps=clock.steps, total_s=clock.total)
 
 
-def format_advice(advice: Advice, *, top: int = 8) -> str:
-    """The terminal report: analysis, pruning, search, the best candidates and the answer."""
-    judge_names = list(dict.fromkeys(c.name for c in advice.constraints))
-    lines = ["analysis: " + " ".join(f"{k}={v}" for k, v in advice.analysis.items()
-                                     if not isinstance(v, (dict, list)))]
-    if advice.pruned:
-        width = max(len(p["method"]) for p in advice.pruned)
-        lines.append("pruned:")
-        lines += [f"  {p['method']:<{width}}  {p['why']}" for p in advice.pruned]
-    lines.append(f"search: {advice.evaluated} cells evaluated for a grid of {advice.grid_size} "
-                 f"(+1 verification run)")
-    lines += [f"  {n}" for n in advice.notes]
-    final = [e for e in advice.history if e.profile == advice.choice.profile and e.row]
-    shown = judge_names + ([] if advice.cost_kind in judge_names else [advice.cost_kind])
-    header = ["method", "config", *shown, "meets"]
-    rows = []
-    for e in sorted(final, key=Evaluation.key)[:top]:
-        values = [e.values.get(name) for name in judge_names]
-        values += [] if advice.cost_kind in judge_names else [e.cost]
-        rows.append([e.candidate.method, e.candidate.label(), *map(fmt, values),
-                     "yes" if e.feasible else "no"])
-    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
-    lines.append(f"best candidates at the {advice.choice.profile} profile:")
-    lines += ["  " + "  ".join(str(v).ljust(w) for v, w in zip(r, widths)).rstrip()
-              for r in [header, *rows]]
-    c = advice.to_json()
-    mem = c["memory_bytes"]
-    lines.append(f"{'choice' if advice.met else 'closest (target not reached)'} (verified, stored): "
-                 f"{c['method']} {advice.choice.candidate.label()}: "
-                 + ", ".join(f"{k} {fmt(c['metrics'].get(k))}" for k in judge_names
-                             if k in c["metrics"])
-                 + f"; frame {fmt(c['frame_ms'])} ms, memory "
-                 f"{fmt(mem / 2 ** 20 if mem is not None else None)} MiB, precompute "
-                 f"{fmt(c['precompute_s'])} s, {advice.cost_kind} {fmt(advice.choice.cost)}")
-    if advice.runner_up is not None:
-        lines.append(f"runner-up: {advice.runner_up.candidate.method} "
-                     f"{advice.runner_up.candidate.label()} ({advice.cost_kind} "
-                     f"{fmt(advice.runner_up.cost)})")
-    if not advice.met:
-        lines.append(f"needed: {advice.hint}")
-    return "\n".join(lines)
+def _scene_size(scene: Any) -> str:
+    """``12,345 triangles`` (what a user's file costs the steps after it), or ''."""
+    triangles = getattr(scene, "n_triangles", None)
+    return f"{int(triangles):,} triangles" if isinstance(triangles, (int, float)) else "built"
+
+
+def _hopeful(e: Evaluation) -> bool:
+    """Whether a screening measurement leaves its candidate a chance at the final profile: it
+    meets everything, or misses only accuracy bounds and each of them narrowly
+    (:func:`~prtbench.tradeoff.search.clear_miss`: the screening profile measures a little
+    lower than the answer's)."""
+    return (e.row is not None and not e.error
+            and all(k.grows_with_model is True and not clear_miss(e, k) for k in e.failed))
+
+
+def _screening_best(screen: Sequence[Evaluation]) -> dict[str, Evaluation]:
+    """Per method, its screening representative: the cheapest hopeful candidate
+    (:func:`_hopeful`), else the closest to the target."""
+    best: dict[str, Evaluation] = {}
+    for e in screen:
+        m = e.candidate.method
+        if m not in best or _screening_key(e) < _screening_key(best[m]):
+            best[m] = e
+    return best
+
+
+def _screening_key(e: Evaluation) -> tuple:
+    """Methods are kept by what they could cost at the final profile: hopeful ones by the
+    cost of their cheapest hopeful candidate (one that narrowly misses for less is not
+    dropped for one that meets at many times the cost), then the rest by shortfall."""
+    if _hopeful(e):
+        return (0, e.cost, 0 if e.feasible else 1, e.shortfall)
+    return (1, e.shortfall, e.cost)
+
+
+def _analysis_text(analysis: Any) -> str:
+    """``required_bands 5, shadows yes, bounces no, ...``: the decisions pruning reads."""
+    fields = (("required_bands", "required_bands"), ("glossy", "needs_glossy"),
+              ("shadows", "needs_shadows"), ("textures", "needs_textures"),
+              ("bounces", "needs_bounces"), ("fixed light", "fixed_light_ok"))
+    values = {name: getattr(analysis, attr, None) for name, attr in fields}
+    return ", ".join(f"{name} {'yes' if v is True else 'no' if v is False else v}"
+                     for name, v in values.items() if v is not None)

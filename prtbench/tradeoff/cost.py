@@ -138,8 +138,23 @@ def cost_value(row: Mapping, kind: str) -> float:
             return ops_counts(row)["ops"]
         except CostUnavailable:
             return math.nan
-    field = {"frame_ms": "frame_ms", "memory": "memory_bytes", "precompute": "precompute_s"}[kind]
+    if kind == "memory":
+        return resident_bytes(row)
+    field = {"frame_ms": "frame_ms", "precompute": "precompute_s"}[kind]
     value = _finite(_get(row, field))
+    return math.nan if value is None else value
+
+
+def resident_bytes(row: Any) -> float:
+    """Every byte the renderer held to draw the next frame: the sum of the row's
+    ``memory_breakdown`` (docs/PROTOCOL.md), else (rows from before the protocol) its
+    ``memory_bytes``; NaN when neither is known."""
+    breakdown = _get(row, "memory_breakdown")
+    if isinstance(breakdown, str):
+        breakdown = json.loads(breakdown) if breakdown else {}
+    if isinstance(breakdown, Mapping) and breakdown:
+        return float(sum(float(v) for v in breakdown.values()))
+    value = _finite(_get(row, "memory_bytes"))
     return math.nan if value is None else value
 
 

@@ -9,6 +9,8 @@ one ``[[method]]`` table per method::
     variant = "diffuse"          # material variant (diffuse, glossy)
     views = 1                    # trajectory views (omitted: the profile's count)
     reference = "path"           # path or method:<name>
+    reference_bounces = 1        # bounces of the path reference, one for every method (omitted:
+                                 # each method's own bounces knob, which splits the panels)
     scene_params = { }           # scene builder parameters
 
     [[method]]
@@ -51,12 +53,13 @@ from prtbench.transport.lights import LIGHTS
 
 #: Keys accepted at the top level of a sweep file.
 TOP_KEYS = ("profile", "scene", "scenes", "light", "lights", "variant", "views", "reference",
-            "scene_params", "method")
+            "reference_bounces", "scene_params", "method")
 #: Keys accepted in a ``[[method]]`` table.
 METHOD_KEYS = ("name", "grid", "fixed", "scene", "scenes", "light", "lights", "variant", "views",
-               "reference", "scene_params")
+               "reference", "reference_bounces", "scene_params")
 #: Defaults a ``[[method]]`` table may override.
-_INHERITED = ("scenes", "lights", "variant", "views", "reference", "scene_params")
+_INHERITED = ("scenes", "lights", "variant", "views", "reference", "reference_bounces",
+              "scene_params")
 
 
 @dataclass(frozen=True)
@@ -112,25 +115,48 @@ def load_sweep(path: str | Path, *, profile: str | None = None) -> Sweep:
     return expand(spec, source=str(path), profile=profile)
 
 
-def split_values(text: str) -> list[str]:
-    """``"3,4,[2,1,2]"`` → ``["3", "4", "[2,1,2]"]``: commas inside brackets do not split."""
+def split_values(text: str, *, option: str = "value list", given: str | None = None) -> list[str]:
+    """``"3,4,[2,1,2]"`` → ``["3", "4", "[2,1,2]"]``: commas inside brackets do not split.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated values.
+    option, given : str
+        The option and the text as the user gave it (default ``text``), for the message.
+
+    Raises
+    ------
+    InvalidInputError
+        An empty value (``3,,4``, ``3,4,``, ``''``) or unbalanced brackets: a value dropped
+        in silence would shrink the grid without a word.
+    """
+    shown = text if given is None else given
     parts, depth, current = [], 0, []
     for char in text:
         depth += {"[": 1, "]": -1}.get(char, 0)
+        if depth < 0:
+            break
         if char == "," and depth == 0:
             parts.append("".join(current).strip())
             current = []
         else:
             current.append(char)
+    if depth != 0:
+        raise InvalidInputError(f"{option} '{shown}' has unbalanced brackets; accepted: "
+                                f"comma-separated values, a list value in [ ] (e.g. 3,[2,1,2])")
     parts.append("".join(current).strip())
-    return [p for p in parts if p]
+    if not all(parts):
+        raise InvalidInputError(f"{option} '{shown}' has an empty value; accepted: "
+                                f"comma-separated values, none empty (e.g. 3,4,5)")
+    return parts
 
 
 def from_options(*, scenes: Sequence[str], methods: Sequence[str], grid: Iterable[str] = (),
                  fixed: Mapping[str, Any] | None = None, lights: Sequence[str] = (),
                  variant: str = "diffuse", views: int | None = None,
                  scene_params: Mapping[str, Any] | None = None, reference: str = "path",
-                 profile: str = "quick") -> Sweep:
+                 reference_bounces: int | None = None, profile: str = "quick") -> Sweep:
     """The sweep of ``prtbench sweep --scene … --method … --grid knob=v1,v2 …``.
 
     Parameters
@@ -146,12 +172,12 @@ def from_options(*, scenes: Sequence[str], methods: Sequence[str], grid: Iterabl
     for item in grid:
         key, sep, values = item.partition("=")
         key = key.strip()
-        if not sep or not key or not split_values(values):
+        if not sep or not key or not values.strip():
             raise InvalidInputError(f"--grid '{item}'; accepted: KNOB=V1,V2,... "
                                     f"(e.g. sh_bands=3,4,5,6)")
         if key in table_grid:
             raise InvalidInputError(f"--grid '{key}' given twice; accepted: one --grid per knob")
-        table_grid[key] = split_values(values)
+        table_grid[key] = split_values(values, option="--grid", given=item)
     spec: dict[str, Any] = {
         "profile": profile, "scenes": list(scenes), "variant": variant, "reference": reference,
         "scene_params": dict(scene_params or {}),
@@ -160,6 +186,8 @@ def from_options(*, scenes: Sequence[str], methods: Sequence[str], grid: Iterabl
         spec["lights"] = list(lights)
     if views is not None:
         spec["views"] = views
+    if reference_bounces is not None:
+        spec["reference_bounces"] = reference_bounces
     return expand(spec, source="command line", profile=profile)
 
 
@@ -226,7 +254,8 @@ def _defaults(table: Mapping[str, Any], where: str) -> dict[str, Any]:
         out["scenes"] = scenes
     if lights is not None:
         out["lights"] = lights
-    for key, kind in (("variant", str), ("views", int), ("reference", str)):
+    for key, kind in (("variant", str), ("views", int), ("reference", str),
+                      ("reference_bounces", int)):
         if key in table:
             out[key] = _typed(table, key, kind, where)
     if "scene_params" in table:
@@ -302,7 +331,9 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
         cell = Job(method=name, scene=scene, label=dict(zip(grid, combo)), variant=variant,
                     light=light, overrides=overrides,
                     scene_params=dict(settings.get("scene_params", {})),
-                    reference=settings.get("reference", "path"), views=settings.get("views"))
+                    reference=settings.get("reference", "path"),
+                    reference_bounces=settings.get("reference_bounces"),
+                    views=settings.get("views"))
         try:
             prepared = prepare_cell(cell, profile=profile, reuse=True)
         except PrtbenchError as exc:
@@ -315,7 +346,7 @@ def _expand_method(table: Mapping[str, Any], defaults: Mapping[str, Any], profil
                           variant=variant, light=light,
                           overrides={k: typed[k] for k in overrides},
                           scene_params=cell.scene_params, reference=cell.reference,
-                          views=cell.views)
+                          reference_bounces=cell.reference_bounces, views=cell.views)
         _VALIDATED[repr((typed_cell, profile, None, False))] = prepared  # run_cells reuses it
         cells.append(typed_cell)
     if not cells:

@@ -23,6 +23,7 @@ placed on a front.
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 
 from prtbench.api.errors import PrtbenchError
@@ -34,6 +35,7 @@ from prtbench.store.results import ResultsStore, default_path
 from prtbench.tradeoff import cost as cost_mod
 from prtbench.tradeoff.front import (
     ParetoResult,
+    Point,
     check_error_kind,
     collect_points,
     mark_fronts,
@@ -42,7 +44,6 @@ from prtbench.tradeoff.front import (
 from prtbench.tradeoff.pareto_report import write_reports
 
 
-#: Error metrics and whether higher is better.
 def fill_hint(scene: str, profile: str) -> str:
     """The command that fills the store for ``scene`` (a sweep file when one exists here)."""
     grid = Path("sweeps") / f"{scene}-all.toml"
@@ -75,6 +76,68 @@ def select_rows(store, *, scene: str, light: str | None, profile: str,
     return dict(sorted(by_light.items()))
 
 
+@dataclass
+class Selection:
+    """What every report over the store starts from, once its options are checked.
+
+    Attributes
+    ----------
+    scene : str
+        The name the rows are stored under (an asset file's content-hash name).
+    path : Path
+        The results store, opened read-only.
+    hint : str
+        The command that fills the store, for messages.
+    rows_by_light : dict
+        light -> the ok rows against the path reference (:func:`select_rows`).
+    """
+
+    scene: str
+    path: Path
+    hint: str
+    rows_by_light: dict[str, list]
+
+
+def open_selection(*, scene: str, light: str | None, error: str, cost: str, profile: str,
+                   results_path: str | Path | None, reports_dir: str | Path,
+                   scene_params: dict | None) -> Selection:
+    """Check every option before any work, then read the store's rows (read-only).
+
+    ``scene`` may be an asset file (DESIGN.md §16): it is imported with ``scene_params`` to
+    find the name its rows are stored under. Raises PrtbenchError (one line) for bad names,
+    an unwritable ``reports_dir``, a missing store and an empty selection.
+    """
+    if is_scene_path(scene):
+        given = scene
+        scene = get_scene(given, **(scene_params or {})).name
+        hint = fill_hint(given, profile)
+    else:
+        hint = fill_hint(scene, profile)
+    check_error_kind(error)
+    cost_mod.check_cost_kind(cost)
+    get_profile(profile)
+    outputs.check_folder("--reports", Path(reports_dir))
+    path = Path(results_path) if results_path is not None else default_path()
+    if not path.is_file() and not path.is_dir():
+        raise PrtbenchError(f"no results store at '{path}'; {hint}")
+    store = ResultsStore(path, readonly=True)
+    return Selection(scene=scene, path=path, hint=hint,
+                     rows_by_light=select_rows(store, scene=scene, light=light, profile=profile,
+                                               fill=hint))
+
+
+def light_points(selection: Selection, light: str, *, error: str, cost: str
+                 ) -> tuple[list[Point], list[str]]:
+    """:func:`collect_points` of one light's rows; a one-line PrtbenchError when none has a
+    finite ``error``."""
+    points, skipped = collect_points(selection.rows_by_light[light], error=error, cost=cost)
+    if not points:
+        raise PrtbenchError(f"no configuration of scene '{selection.scene}' under light "
+                            f"'{light}' has a finite {error} in '{selection.path}'; "
+                            f"{selection.hint}")
+    return points, skipped
+
+
 def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
            cost: str = "frame_ms", profile: str = "quick", results_path: str | Path | None = None,
            reports_dir: str | Path = "reports",
@@ -86,34 +149,18 @@ def pareto(*, scene: str, light: str | None = None, error: str = "psnr_masked",
     Reads the store read-only; writes ``reports_dir/pareto-<scene>-<light>.{md,csv,png,svg}``
     atomically. Raises PrtbenchError (one line) for bad names and an empty selection.
     """
-
-    if is_scene_path(scene):
-
-        given = scene
-        scene = get_scene(given, **(scene_params or {})).name
-        hint = fill_hint(given, profile)
-    else:
-        hint = fill_hint(scene, profile)
-
-    check_error_kind(error)
-    cost_mod.check_cost_kind(cost)
-    get_profile(profile)
-    outputs.check_folder("--reports", Path(reports_dir))
-    path = Path(results_path) if results_path is not None else default_path()
-    if not path.is_file() and not path.is_dir():
-        raise PrtbenchError(f"no results store at '{path}'; {hint}")
-    store = ResultsStore(path, readonly=True)
+    selection = open_selection(scene=scene, light=light, error=error, cost=cost, profile=profile,
+                               results_path=results_path, reports_dir=reports_dir,
+                               scene_params=scene_params)
     results = []
-    for name, rows in select_rows(store, scene=scene, light=light, profile=profile,
-                                  fill=hint).items():
-        points, skipped = collect_points(rows, error=error, cost=cost)
-        if not points:
-            raise PrtbenchError(f"no configuration of scene '{scene}' under light '{name}' has a "
-                                f"finite {error} in '{path}'; {hint}")
+    for name, rows in selection.rows_by_light.items():
+        points, skipped = light_points(selection, name, error=error, cost=cost)
         mark_fronts(points, error=error)
         correlation = ops_correlations(rows)
-        result = ParetoResult(scene=scene, light=name, error=error, cost=cost, profile=profile,
-                              points=points, skipped=skipped, correlation=correlation, paths=[])
-        result.paths = write_reports(result, reports_dir=Path(reports_dir), results_path=path)
+        result = ParetoResult(scene=selection.scene, light=name, error=error, cost=cost,
+                              profile=profile, points=points, skipped=skipped,
+                              correlation=correlation, paths=[])
+        result.paths = write_reports(result, reports_dir=Path(reports_dir),
+                                     results_path=selection.path)
         results.append(result)
     return results

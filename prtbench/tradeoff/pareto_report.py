@@ -10,24 +10,30 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import re
 from collections import defaultdict
 from pathlib import Path
 
-from prtbench.api import config as config_mod
 from prtbench.api.cache import atomic_path
 from prtbench.api.method import METHODS
 from prtbench.bench.reproduction import load_note
 from prtbench.store.results import git_sha
 from prtbench.tradeoff import cost as cost_mod
-from prtbench.tradeoff.front import ERROR_LABELS, ERRORS, ParetoResult, Point
+from prtbench.tradeoff.front import ERROR_LABELS, ERRORS, ParetoResult, Point, knobs_text
 
 _MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "h", "<", ">", "p")
 _CSV_COLUMNS = ("scene", "light", "variant", "width", "height", "profile", "method", "config",
-                "error_kind", "error", "error_unclipped", "clipped", "noise_ceiling_db",
-                "cost_kind", "cost", "on_front", "dominated", "views", "rows", "run_ids",
-                "timing_workers", "ops_madds", "ops_fetches", "ops_bytes", "note")
+                "panel", "reference", "light_class", "split", "error_kind", "error",
+                "error_lo", "error_hi", "error_unclipped", "clipped", "noise_ceiling_db",
+                "cost_kind", "cost", "on_front", "dominated", "tied_with", "views", "rows",
+                "run_ids", "timing_workers", "ops_madds", "ops_fetches", "ops_bytes",
+                "frame_components", "memory_breakdown", "light_change_ms", "note")
+#: Configurations a rank correlation needs before a report prints it (fewer say so instead).
+MIN_CORRELATION_CONFIGS = 8
+#: Markers of the light classes drawn over a method's own marker.
+_CLASS_OVERLAY = {"family": "+", "fixed": "x"}
 
 
 def report_stem(scene: str, light: str) -> str:
@@ -48,18 +54,6 @@ def method_style(method: str) -> tuple[str, tuple]:
     return _MARKERS[index % len(_MARKERS)], colours[index % len(colours)]
 
 
-def _knobs(point: Point) -> str:
-    """The knobs that differ from the method's config in the point's profile, ``k=v`` (the
-    whole config if the method is no longer registered)."""
-
-    try:
-        defaults = config_mod.to_dict(METHODS.get(point.method).make_config({}, profile=point.profile))
-    except Exception:  # a method no longer registered: show everything
-        defaults = {}
-    changed = {k: v for k, v in sorted(point.config.items()) if defaults.get(k, object()) != v}
-    return ", ".join(f"{k}={v}" for k, v in changed.items()) or "(profile defaults)"
-
-
 def _fmt(value: float, digits: int = 4) -> str:
     if value is None or not math.isfinite(value):
         return "—"
@@ -68,11 +62,33 @@ def _fmt(value: float, digits: int = 4) -> str:
     return f"{value:.{digits}g}"
 
 
-def _panels(points: list[Point]) -> dict[tuple, list[Point]]:
-    panels: dict[tuple, list[Point]] = defaultdict(list)
+def _panels(points: list[Point]) -> dict[str, list[Point]]:
+    panels: dict[str, list[Point]] = defaultdict(list)
     for p in points:
         panels[p.panel].append(p)
     return dict(sorted(panels.items()))
+
+
+def reference_of(panel: str) -> str:
+    """The reference a panel scores against (``path/b0/256spp``), from its name."""
+    match = re.search(r"ref=(\S+)", panel)
+    return match.group(1) if match else ""
+
+
+def _interval(p: Point) -> str:
+    if not (math.isfinite(p.error_lo) and math.isfinite(p.error_hi)):
+        return "—"
+    return f"{_fmt(p.error_lo)}–{_fmt(p.error_hi)}"
+
+
+def display_path(path: Path) -> str:
+    """A path as a report may name it: relative to the working folder, else its name only
+    (committed reports never name a machine's absolute path)."""
+    path = Path(path)
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return path.name
 
 
 def csv_text(result: ParetoResult) -> str:
@@ -81,33 +97,48 @@ def csv_text(result: ParetoResult) -> str:
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(_CSV_COLUMNS)
     for p in result.points:
+        finite = lambda v: repr(v) if v is not None and math.isfinite(v) else ""  # noqa: E731
         writer.writerow([
             p.scene, p.light, p.variant, p.width, p.height, p.profile, p.method, p.config_json,
-            result.error, repr(p.error), repr(p.error_unclipped), int(p.clipped),
-            "" if p.ceiling_db is None else repr(p.ceiling_db), result.cost,
-            "" if not math.isfinite(p.cost) else repr(p.cost),
+            p.panel, reference_of(p.panel), p.light_class, p.split,
+            result.error, repr(p.error), finite(p.error_lo), finite(p.error_hi),
+            repr(p.error_unclipped), int(p.clipped),
+            "" if p.ceiling_db is None else repr(p.ceiling_db), result.cost, finite(p.cost),
             "" if p.dominated is None else int(not p.dominated),
-            "" if p.dominated is None else int(p.dominated), p.views, p.rows,
-            ";".join(p.run_ids), ";".join(map(str, p.timing_workers)),
+            "" if p.dominated is None else int(p.dominated), ";".join(p.tied_with), p.views,
+            p.rows, ";".join(p.run_ids), ";".join(map(str, p.timing_workers)),
             *(repr(p.ops_counts[k]) if k in p.ops_counts else "" for k in ("madds", "fetches", "bytes")),
-            p.note])
+            json.dumps(p.frame_components, sort_keys=True),
+            json.dumps(p.memory_breakdown, sort_keys=True), finite(p.light_change_ms), p.note])
     return out.getvalue()
 
 
+def rho_interval(rho: float, n: int) -> tuple[float, float]:
+    """95 % interval of a Spearman ρ over ``n`` pairs (Fisher z, Bonett–Wright's standard
+    error √(1 + ρ²/2) / √(n − 3))."""
+    if n <= 3 or not math.isfinite(rho):
+        return -1.0, 1.0
+    z = math.atanh(max(min(rho, 0.999999), -0.999999))
+    half = 1.96 * math.sqrt(1.0 + rho * rho / 2.0) / math.sqrt(n - 3)
+    return math.tanh(z - half), math.tanh(z + half)
+
+
 def _correlation_lines(result: ParetoResult) -> list[str]:
-    """One line per renderer: how well ``ops`` ranks the measured frame times."""
+    """One line per renderer: how well ``ops`` ranks the measured frame times -- only where
+    there are :data:`MIN_CORRELATION_CONFIGS` configurations, with the interval of ρ."""
     lines = []
     for renderer, c in result.correlation.items():
-        rho_r, p_r, n_r = c["rows"]
         rho_c, p_c, n_c = c["configs"]
         where = f"{renderer}; {', '.join(c['devices']) or 'unknown device'}"
-        if not math.isfinite(rho_r) and not math.isfinite(rho_c):
-            lines.append(f"ops model vs measured frame_ms ({where}): too few rows with both "
-                         f"({n_r} rows, {n_c} configurations) for a rank correlation")
+        if n_c < MIN_CORRELATION_CONFIGS or not math.isfinite(rho_c):
+            lines.append(f"ops model vs measured frame_ms ({where}): {n_c} configurations with "
+                         f"both; a rank correlation needs at least {MIN_CORRELATION_CONFIGS}, "
+                         "so none is reported")
             continue
-        lines.append(f"ops model vs measured frame_ms ({where}): Spearman ρ = {_fmt(rho_r, 3)} "
-                     f"(p = {_fmt(p_r, 2)}) over {n_r} rows of this scene and light, "
-                     f"ρ = {_fmt(rho_c, 3)} (p = {_fmt(p_c, 2)}) over {n_c} configurations")
+        lo, hi = rho_interval(rho_c, n_c)
+        lines.append(f"ops model vs measured frame_ms ({where}): Spearman ρ = {_fmt(rho_c, 3)} "
+                     f"(95 % interval {_fmt(lo, 2)} to {_fmt(hi, 2)}, p = {_fmt(p_c, 2)}) over "
+                     f"{n_c} configurations")
     return lines or ["ops model vs measured frame_ms: no timed rows"]
 
 
@@ -136,13 +167,21 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
     lines = [
         f"# Pareto front: {result.scene} under {result.light} ({error} vs {cost})", "",
         f"Generated by `prtbench pareto --scene {result.scene} --light {result.light} "
-        f"--error {error} --cost {cost} --profile {result.profile}` from `{results_path}` "
-        f"(read-only) with prtbench {git_sha()}.", "",
+        f"--error {error} --cost {cost} --profile {result.profile}` from "
+        f"`{display_path(results_path)}` (read-only) with prtbench {git_sha()}, under the "
+        "protocol of docs/PROTOCOL.md.", "",
         f"- Profile: {result.profile}. Rows measured by code version(s): {', '.join(shas) or 'unknown'}.",
         f"- Renderer(s): {'; '.join(renderers) or 'unknown'}. Device(s): {'; '.join(devices) or 'unknown'}."
         + _load_note(points, cost),
         f"- Error: {ERROR_LABELS[error]} against the path-traced reference, mean over a "
-        f"configuration's views ({better} is better).",
+        f"configuration's views ({better} is better), with its 95 % interval (the reference's "
+        "Monte Carlo noise and the spread over views). One configuration dominates another "
+        "only when it is better beyond the intervals; a configuration kept on the front only "
+        "by them is marked 'tie'.",
+        "- Panels: rows share a panel, and a front, only when they share the reference "
+        "(bounces, spp) and the view set. Light class: relight (any light), family (fitted to "
+        "a family of lights), fixed (one baked light). Learnt or fitted configurations are "
+        "ranked on held-out or in-family lights only (split).",
     ]
     if error == "psnr_masked":
         lines.append("- Noise ceiling: a view's PSNR above −20·log10(reference noise RMSE) of "
@@ -157,7 +196,9 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
                      ": device-specific (timer queries on a GPU, host clock around draw + finish "
                      "on llvmpipe); only rows measured with one worker are averaged where a "
                      "configuration has any"),
-        "memory": "resident bytes the renderer keeps to draw a frame",
+        "memory": ("every byte the renderer keeps to draw the next frame (the sum of its "
+                   "memory_breakdown: transfer data, textures, weights, G-buffers, render "
+                   "targets, cached images)"),
         "precompute": "precompute wall time (s) of the artifact",
         "ops": (f"device-independent operations per frame: madds + {cost_mod.OPS_WEIGHTS['fetches']:g}"
                 f"·fetches + {cost_mod.OPS_WEIGHTS['bytes']:g}·bytes (prtbench/tradeoff/cost.py "
@@ -166,26 +207,34 @@ def markdown_text(result: ParetoResult, *, results_path: Path, figure_name: str)
     lines += [f"- Cost: {cost} ({unit}): {cost_text}.",
               *[f"- {line}." for line in _correlation_lines(result)], "",
               f"![Pareto front]({figure_name}.png)", ""]
-    for (variant, width, height), members in _panels(points).items():
+    for panel, members in _panels(points).items():
         front = sorted((p for p in members if p.dominated is False), key=lambda p: p.cost)
-        lines += [f"## {variant} variant, {width}×{height}", "",
-                  f"{len(front)} of {len(members)} configurations on the front.", "",
-                  f"| front | method | knobs | {error} | {cost} ({unit}) | views | clipped | runs |",
-                  "|---|---|---|---:|---:|---:|---|---|"]
+        lines += [f"## {panel}", "",
+                  f"{len(front)} of {len(members)} configurations on the front; reference "
+                  f"{reference_of(panel) or 'unknown'}.", "",
+                  f"| front | method | knobs | light class | split | {error} | interval "
+                  f"| {cost} ({unit}) | views | clipped | runs |",
+                  "|---|---|---|---|---|---:|---|---:|---:|---|---|"]
         order = sorted(members, key=lambda p: (p.dominated is not False, p.dominated is None,
                                                p.cost if math.isfinite(p.cost) else math.inf))
         for p in order:
-            mark = "yes" if p.dominated is False else ("—" if p.dominated is None else "")
+            mark = ("tie" if p.tied_with else "yes") if p.dominated is False else (
+                "—" if p.dominated is None else "")
             runs = ", ".join(p.run_ids) if p.run_ids else "—"
-            lines.append(f"| {mark} | {p.method} | {_knobs(p)} | {_fmt(p.error)} | {_fmt(p.cost)} "
-                         f"| {p.views} | {'yes' if p.clipped else ''} | {runs} |")
+            lines.append(f"| {mark} | {p.method} | {knobs_text(p)} | {p.light_class} | {p.split} "
+                         f"| {_fmt(p.error)} | {_interval(p)} | {_fmt(p.cost)} | {p.views} "
+                         f"| {'yes' if p.clipped else ''} | {runs} |")
+        ties = [p for p in members if p.tied_with]
+        if ties:
+            lines += ["", "Ties (on the front only because the intervals overlap):"]
+            lines += [f"- {p.method} ({knobs_text(p)}) with {'; '.join(p.tied_with)}" for p in ties]
         missing = [p for p in members if p.dominated is None]
         if missing:
             lines += ["", "Not placed (cost unknown):"]
-            lines += [f"- {p.method} ({_knobs(p)}): {p.note}" for p in missing]
+            lines += [f"- {p.method} ({knobs_text(p)}): {p.note}" for p in missing]
         lines.append("")
     if result.skipped:
-        lines += ["Left out (no finite error):", *[f"- {s}" for s in result.skipped], ""]
+        lines += ["Left out:", *[f"- {s}" for s in result.skipped], ""]
     return "\n".join(lines)
 
 
@@ -201,7 +250,7 @@ def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
     higher = ERRORS[result.error]
     with plt.rc_context({"svg.hashsalt": "prtbench-pareto", "font.size": 9}):
         fig, axes = plt.subplots(1, len(panels), figsize=(8.0 * len(panels), 4.6), squeeze=False)
-        for ax, ((variant, width, height), members) in zip(axes[0], panels.items()):
+        for ax, (panel, members) in zip(axes[0], panels.items()):
             placed = [p for p in members if p.dominated is not None]
             for method in sorted({p.method for p in placed}):
                 marker, colour = method_style(method)
@@ -209,14 +258,23 @@ def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
                 on = [p for p in mine if not p.dominated]
                 off = [p for p in mine if p.dominated]
                 # Filled: on the front; hollow: dominated. One legend entry per method.
+                label = f"{method} ({mine[0].light_class})"
+                for p in mine:  # the 95 % interval of the error
+                    if math.isfinite(p.error_lo) and math.isfinite(p.error_hi):
+                        ax.plot([p.cost, p.cost], [p.error_lo, p.error_hi], color=colour,
+                                linewidth=0.8, alpha=0.6, zorder=1)
                 if on:
                     ax.scatter([p.cost for p in on], [p.error for p in on], marker=marker,
-                               color=colour, s=42, label=method, zorder=3, edgecolors="black",
+                               color=colour, s=42, label=label, zorder=3, edgecolors="black",
                                linewidths=0.5)
                 if off:
                     ax.scatter([p.cost for p in off], [p.error for p in off], marker=marker,
                                facecolors="none", edgecolors=colour, s=36, zorder=2,
-                               label=None if on else method)
+                               label=None if on else label)
+                for p in mine:  # the light class, drawn over the marker
+                    if p.light_class in _CLASS_OVERLAY:
+                        ax.scatter([p.cost], [p.error], marker=_CLASS_OVERLAY[p.light_class],
+                                   color="black", s=20, zorder=4, linewidths=0.8)
             front = sorted((p for p in placed if not p.dominated), key=lambda p: (p.cost, -p.error if higher else p.error))
             if front:
                 ax.step([p.cost for p in front], [p.error for p in front], where="post",
@@ -232,8 +290,8 @@ def plot(result: ParetoResult, *, png: Path, svg: Path) -> None:
             # ann-benchmarks labels the better direction on the axes themselves.
             ax.set_xlabel(f"{result.cost} ({cost_mod.COST_UNITS[result.cost]})  (better ←)")
             ax.set_ylabel(f"{ERROR_LABELS[result.error]}  (better {'↑' if higher else '↓'})")
-            ax.set_title(f"{result.scene} / {result.light}: {variant}, {width}×{height}, "
-                         f"{result.profile} (filled: on the front, hollow: dominated)", fontsize=9)
+            ax.set_title(f"{panel}, {result.profile}\n(filled: on the front, hollow: dominated; "
+                         "bars: 95 % intervals; +: family, x: fixed light)", fontsize=8)
             ax.grid(True, which="major", alpha=0.3)
             # Beside the axes: with a dozen methods any corner inside hides points.
             ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
@@ -265,8 +323,9 @@ def summary_text(result: ParetoResult) -> str:
     lines = [f"pareto {result.scene}/{result.light}: {result.error} vs {result.cost} "
              f"({result.profile}), {len(result.points)} configurations, {len(front)} on the front"]
     for p in front:
-        lines.append(f"  {p.variant:8s} {p.method:18s} {_knobs(p):40s} {result.error}="
-                     f"{_fmt(p.error)}{' (clipped)' if p.clipped else ''}  {result.cost}={_fmt(p.cost)}")
+        lines.append(f"  {p.variant:8s} {p.method:18s} {knobs_text(p):40s} {result.error}="
+                     f"{_fmt(p.error)} [{_interval(p)}]{' (clipped)' if p.clipped else ''}  "
+                     f"{result.cost}={_fmt(p.cost)}  {p.light_class}{'  tie' if p.tied_with else ''}")
     missing = sorted({p.method for p in result.points if p.dominated is None})
     if missing:
         lines.append(f"  cost '{result.cost}' unavailable for: {', '.join(missing)}")

@@ -1,7 +1,9 @@
 """The configurations ``prtbench advise`` searches: every registered method, pruned by a scene analysis.
 
 "Model only what the scene requires" (DESIGN.md §15) becomes rules on the analysis
-(:func:`prtbench.tradeoff.analyze.analyze_scene`'s ``SceneAnalysis``):
+(:func:`prtbench.tradeoff.analyze.analyze_scene`'s ``SceneAnalysis``). Two kinds, kept apart:
+
+**Capability** prunes whole methods, which cannot meet the need at any setting:
 
 * a method that cannot render the scene (its own ``validate`` refuses the materials, the
   surface kind, …) is pruned with that method's message;
@@ -9,21 +11,29 @@
   class attribute) are pruned — a diffuse method gives the same image for less;
 * ``fixed_light_ok`` false: methods whose precompute bakes one light (``light_dependence``
   other than ``"none"``) are pruned;
-* ``needs_bounces``: false fixes ``bounces`` at 0 and prunes methods that cannot turn
-  interreflection off; true searches ``bounces`` 1–2 and prunes methods with no ``bounces``
-  knob (their reference is direct-only, so their numbers would not answer the question);
-* ``needs_shadows`` false: a ``visibility`` knob, where a method has one, is fixed off;
+* ``needs_bounces`` false prunes methods that cannot turn interreflection off; true prunes
+  methods with no ``bounces`` knob.
+
+**Where to start** never excludes a cheaper setting: the analysis' thresholds (1 % irradiance
+error, 5 % indirect energy) are not the user's target, so a ladder keeps every step below
+the analysed one down to the knob's declared low, and the analysed step is only the first
+candidate the search measures (``MethodSpace.start``); what the measurements decide from
+there is :func:`prtbench.tradeoff.search._decided`'s business. Steps *above* what the scene
+needs may be dropped (they cost more and model nothing the scene has):
+
 * ``required_bands`` (and ``glossy_bands`` when glossy): ``sh_bands`` is searched from the
-  required count to ``band_margin`` above it, clipped to the knob's declared range; a method
-  whose range stops below the requirement is kept at its top and the gap recorded (it feeds
-  the "what would be needed" hint);
+  knob's low to ``band_margin`` above the required count, clipped to the knob's declared
+  range, starting at the required count; a method whose range stops below the requirement
+  starts at its top and the gap is recorded (it feeds the "what would be needed" hint);
+* ``needs_bounces`` false fixes ``bounces`` at 0; true searches 0–2, starting at 1;
+* ``needs_shadows`` false: a ``visibility`` knob, where a method has one, is fixed off;
 * ``needs_textures``: ``texture_resolution`` is searched at half, once and twice the profile's
   default; false drops the high resolution.
 
 Every other main knob (a method's ``main_knobs`` class attribute: knobs along which accuracy
 and cost both grow) is searched on a short ladder around the profile's default, derived from
-the knob's declared bounds (geometric ×2 steps for wide ranges, ±1 for narrow ones). Nothing
-here is per-method code: methods are reached through the registry only.
+the knob's declared bounds (geometric ×2 steps for wide ranges, ±1 for narrow ones), starting
+at the default. Nothing here is per-method code: methods are reached through the registry only.
 """
 
 from __future__ import annotations
@@ -96,6 +106,10 @@ class MethodSpace:
     candidates : list of Candidate
     invalid : int
         Ladder combinations the method's own validation refused (left out of ``candidates``).
+    start : Candidate or None
+        Where the analysis points (the analysed bands and bounces, every other knob at the
+        profile's default): the first candidate the search measures, never a limit on it.
+        None when the method refuses that combination.
     """
 
     method: str
@@ -105,6 +119,7 @@ class MethodSpace:
     shortfalls: dict[str, str] = field(default_factory=dict)
     candidates: list[Candidate] = field(default_factory=list)
     invalid: int = 0
+    start: Candidate | None = None
 
     def at_top(self, candidate: Candidate) -> list[str]:
         """The searched knobs of ``candidate`` at the top of their ladder."""
@@ -187,30 +202,37 @@ def _prune_reason(cls, name: str, scene, base, analysis) -> str | None:
 
 
 def _analysis_ladder(knob: str, f, default, tp, analysis, *, band_margin: int,
-                     space: MethodSpace) -> list | None:
-    """The ladder the analysis decides for ``knob``, or None if it does not decide it."""
+                     space: MethodSpace) -> tuple[list, Any] | None:
+    """The ladder the analysis decides for ``knob`` and the step it points at (where the
+    search starts), or None if it does not decide the knob.
+
+    The analysis' thresholds are not the user's target, so no ladder stops above the knob's
+    declared low: a cheaper step may meet a looser target, and only a measurement may rule
+    it out.
+    """
     low, high = f.metadata.get("low"), f.metadata.get("high")
     if knob == "sh_bands":
         required = int(analysis.required_bands)
         if analysis.needs_glossy:
             required = max(required, int(analysis.glossy_bands))
+        low_bands = int(low or 1)
         if high is not None and required > high:
             space.shortfalls[knob] = (f"the analysis asks for {required} bands; "
                                       f"{space.method} stops at {int(high)}")
-            return [int(high)]
-        start = max(required, int(low or 1))
-        return _clip(range(start, start + band_margin + 1), low, high, int)
+        start = max(low_bands, min(required, int(high)) if high is not None else required)
+        return _clip(range(low_bands, start + band_margin + 1), low, high, int), start
     if knob == "bounces":
         if not analysis.needs_bounces:
-            return _clip([0], low, high, int) or [int(low)]
-        return _clip([1, 2], low, high, int) or [int(high or 0)]
+            return (_clip([0], low, high, int) or [int(low)]), None
+        ladder = _clip([0, 1, 2], low, high, int) or [int(high or 0)]
+        return ladder, min(ladder, key=lambda v: abs(v - 1))
     if knob == "visibility":
-        return [False] if not analysis.needs_shadows else None
+        return ([False], False) if not analysis.needs_shadows else None
     if knob == "texture_resolution" and default:
         # Vertices already resolve the shadows: no texels beyond the profile's default. (Not
         # below half of it either: small atlases stop packing big scenes.)
         ladder = _clip([default / 2, default, default * 2], low, high, int)
-        return [v for v in ladder if analysis.needs_textures or v <= default] or ladder[:1]
+        return [v for v in ladder if analysis.needs_textures or v <= default] or ladder[:1], default
     return None
 
 
@@ -224,16 +246,17 @@ def method_space(cls, name: str, scene, analysis, *, profile: str,
     knobs += [k for k in ANALYSIS_KNOBS if k in fields and k not in knobs]
     space = MethodSpace(name, {}, {}, {})
     ordered: dict[str, bool] = {}
+    pointed: dict[str, Any] = {}  # the step the analysis points at, per searched knob
     for knob in knobs:
         f, default, tp = fields[knob], getattr(base, knob), _field_type(cls.Config, knob)
-        ladder = _analysis_ladder(knob, f, default, tp, analysis, band_margin=band_margin,
-                                  space=space)
-        if ladder is None:
+        decided = _analysis_ladder(knob, f, default, tp, analysis, band_margin=band_margin,
+                                   space=space)
+        if decided is None:
             if knob not in cls.main_knobs:
                 continue  # an analysis knob the analysis leaves alone keeps the profile's value
-            ladder, ordered[knob] = generic_ladder(f, default, tp)
+            (ladder, ordered[knob]), pointed[knob] = generic_ladder(f, default, tp), default
         else:
-            ordered[knob] = True
+            (ladder, pointed[knob]), ordered[knob] = decided, True
         if len(ladder) == 1:
             space.fixed[knob] = ladder[0]
         else:
@@ -252,7 +275,22 @@ def method_space(cls, name: str, scene, analysis, *, profile: str,
             name, tuple((k, values[k]) for k in [*names, *space.fixed]),
             tuple(i for k, i in zip(names, combo) if ordered[k]),
             tuple((k, values[k]) for k in names if not ordered[k])))
+    # The start: on each ladder, the step nearest the one the analysis points at.
+    start = {k: min(ladder, key=lambda v: (_distance(v, pointed.get(k)), ladder.index(v)))
+             for k, ladder in space.ladders.items()}
+    space.start = next((c for c in space.candidates
+                        if all(c.overrides[k] == v for k, v in start.items())), None)
     return space
+
+
+def _distance(value: Any, pointed: Any) -> float:
+    """How far a ladder step is from the step the analysis points at (0: the same)."""
+    if value == pointed:
+        return 0.0
+    try:
+        return abs(float(value) - float(pointed))
+    except (TypeError, ValueError):  # unordered choices: any other step is as far
+        return float("inf")
 
 
 def build_space(scene, analysis, *, profile: str, methods: Sequence[str] | None = None,

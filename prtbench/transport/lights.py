@@ -42,15 +42,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from prtbench.api.cache import cached_arrays, content_key
+from prtbench.api.cache import cache_root, cached_arrays, content_key
 from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameError
 from prtbench.api.registry import Registry
 from prtbench.io.imageio import read_hdr_image
@@ -105,6 +106,8 @@ class EnvironmentLight:
     image: np.ndarray
     source: str = ""
     clamped_texels: int = field(default=0, init=False)
+    #: Projections skip the disk cache (a light made by :meth:`as_new_light`).
+    _uncached: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         image, clamped = _validated_image(self.image, self.name, self.source)
@@ -214,8 +217,18 @@ class EnvironmentLight:
         """SHA-256 of the image content (the name and source do not enter)."""
         return self._hash
 
+    def as_new_light(self) -> "EnvironmentLight":
+        """The same image as a light nothing has seen: no memoised projection, a content hash
+        of its own (so no renderer finds per-light state for it) and projections computed
+        without the disk cache. What a renderer does before the first frame of this light is
+        then the work a real light change costs (the runner's ``light_change_ms``)."""
+        fresh = EnvironmentLight(self.name, self.image, source=self.source)
+        fresh.__dict__["_hash"] = f"{self._hash}-new-{uuid.uuid4().hex}"
+        object.__setattr__(fresh, "_uncached", True)
+        return fresh
+
     @cached_property
-    def _sh_memo(self) -> dict[int, np.ndarray]:
+    def _sh_memo(self) -> dict[tuple[int, str], np.ndarray]:
         return {}
 
     def sh(self, bands: int) -> np.ndarray:
@@ -231,14 +244,18 @@ class EnvironmentLight:
             raise InvalidInputError(f"sh bands={bands!r}; accepted: integers 1..64")
         bands = int(bands)
         memo = self._sh_memo
-        if bands in memo:
-            return memo[bands].copy()
+        # Keyed by the cache root too: a process that switches $PRTBENCH_CACHE (a test, a
+        # team's second cache) still leaves the projection in the cache it now uses.
+        memo_key = (bands, str(cache_root()))
+        if memo_key in memo:
+            return memo[memo_key].copy()
         key = content_key("light-sh", self.content_hash(), bands, SH_PROJECTION_VERSION,
                           nodes_per_cell(self.height, bands))
         arrays = cached_arrays("light-sh", key,
-                               lambda: {"coeffs": project_bilinear(self.image, bands)})
-        memo[bands] = arrays["coeffs"].astype(np.float64)
-        return memo[bands].copy()
+                               lambda: {"coeffs": project_bilinear(self.image, bands)},
+                               use_cache=not self._uncached)
+        memo[memo_key] = arrays["coeffs"].astype(np.float64)
+        return memo[memo_key].copy()
 
     def mitsuba_dict(self) -> dict[str, Any]:
         """``{'type': 'envmap', 'bitmap': ...}`` for ``mi.load_dict`` (a Mitsuba variant must be

@@ -241,7 +241,8 @@ def light_cubemap(light: "EnvironmentLight", n: int) -> np.ndarray:
     s = default_supersample(n, light.height)
     key = content_key("light-cubemap", light.content_hash(), n, s, RESAMPLE_VERSION)
     return cached_arrays("light-cubemap", key,
-                         lambda: {"cube": from_lat_long(light, n, supersample=s)})["cube"]
+                         lambda: {"cube": from_lat_long(light, n, supersample=s)},
+                         use_cache=not getattr(light, "_uncached", False))["cube"]
 
 
 def to_lat_long(cube: np.ndarray, height: int, *, interpolation: str = "bilinear") -> np.ndarray:

@@ -4,8 +4,10 @@ prints equals the store's, and bad input is one line with nothing half-written (
 from __future__ import annotations
 
 import csv
+import html
 import json
 import math
+import re
 from collections import defaultdict
 from html.parser import HTMLParser
 from pathlib import Path
@@ -18,8 +20,18 @@ from prtbench.cli import main
 from prtbench.render.mitsuba_variant import select_variant
 from prtbench.site.build import MARKER, build, fmt
 from prtbench.store.results import ResultsStore
-from prtbench.tradeoff.front import collect_points, noise_ceiling_db
-from tests.prtbench.site.site_store import CELLS, STABILITY_ROWS, add_stability, make_store
+from prtbench.tradeoff.front import collect_points, mark_fronts, noise_ceiling_db
+from tests.prtbench.site.site_store import (
+    CELLS,
+    PANEL_FIXED_VIEW,
+    PANEL_TWO_VIEWS,
+    PROTOCOL_CELLS,
+    STABILITY_ROWS,
+    add_protocol_rows,
+    add_stability,
+    make_store,
+    protocol_config,
+)
 
 _VOID = {"img", "input", "br", "meta", "link", "hr", "source", "wbr"}
 
@@ -88,7 +100,9 @@ def _parse(path: Path) -> _Cells:
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory) -> Path:
-    return make_store(tmp_path_factory.mktemp("site-store"))
+    path = make_store(tmp_path_factory.mktemp("site-store"))
+    add_protocol_rows(path)
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -98,19 +112,47 @@ def site(store, tmp_path_factory) -> Path:
     return out
 
 
-def _configurations(rows) -> dict[tuple, list]:
-    """The store's configurations, grouped here independently of prtbench.site.data."""
-    groups = defaultdict(list)
-    for r in rows:
-        if r.status == "ok" and r.reference_kind == "path":
-            groups[(r.method, json.dumps(r.config, sort_keys=True),
-                    json.dumps(r.scene_params, sort_keys=True))].append(r)
-    return groups
+def _view_key(row):
+    return json.dumps(row.view_json, sort_keys=True) if row.view_json else int(row.view)
+
+
+def _expected(rows) -> list[dict]:
+    """The page's configurations under the protocol, computed here from front.py's
+    collect_points and mark_fronts on each set of scene parameters (independently of
+    prtbench.site): one entry per configuration and panel, with the rows behind its point."""
+    usable = [r for r in rows if r.status == "ok" and r.reference_kind == "path"]
+    by_params = defaultdict(list)
+    for r in usable:
+        by_params[json.dumps(r.scene_params, sort_keys=True)].append(r)
+    out = []
+    for params, part in by_params.items():
+        psnr, _ = collect_points(part, error="psnr_masked", cost="frame_ms")
+        flip, _ = collect_points(part, error="flip_masked", cost="frame_ms")
+        flips = {(p.label, p.panel): p for p in flip}
+        for p in psnr:
+            group = [r for r in part if r.method == p.method and r.run_id in p.run_ids
+                     and json.dumps(r.config, sort_keys=True) == p.config_json
+                     and _view_key(r) in p.per_view and r.split != "trained"]
+            out.append({"params": params, "point": p, "flip": flips.get((p.label, p.panel)),
+                        "rows": group})
+    mark_fronts([e["point"] for e in out], error="psnr_masked")
+    return out
+
+
+def _page_configs(page: _Cells) -> dict[tuple, str]:
+    """(panel, label, scene parameters) -> the configuration id of the page's rows."""
+    ids = {}
+    for n in page.numbers:
+        row = n["outer"]
+        if "data-label" in row:
+            key = (row["data-panel"], row["data-label"], row["data-params"])
+            assert ids.setdefault(key, row["data-config"]) == row["data-config"], key
+    return ids
 
 
 def _check(number: dict, expected) -> None:
     """The printed text and the exact value both equal the expected stored quantity."""
-    if expected is None:
+    if expected is None or (isinstance(expected, float) and not math.isfinite(expected)):
         assert number["text"] == "—" and number["value"] == "", number
         return
     assert number["text"] == fmt(expected), (number, expected)
@@ -123,75 +165,220 @@ def _check(number: dict, expected) -> None:
 
 def test_every_number_on_the_scene_page_is_the_stores(store, site):
     rows = ResultsStore(store, readonly=True).query()
-    groups = _configurations(rows)
-    # 3 sweep configurations + 4 tessellation ground levels (vertex at its defaults).
-    assert len(groups) == len(CELLS) + 4
+    expected = _expected(rows)
+    # 3 sweep configurations + 4 tessellation ground levels (vertex at its defaults) in the
+    # sweep's panel; vertex x2, texture-tp and data-driven in the two-view panel; those three
+    # on its second camera and wavelet-image in the fixed-view panel.
+    assert len(expected) == len(CELLS) + 4 + 4 + 4
     page = _parse(site / "scene-plants-sky-smoke.html")
+    ids = _page_configs(page)
     by_config = defaultdict(dict)
     view_numbers = []
     for n in page.numbers:
         if n["field"].startswith("view_"):
             view_numbers.append(n)
         else:
-            by_config[n["row"]["data-config"]][n["field"]] = n
-    assert len(by_config) == len(groups)
-    # Which configuration id is which: the page's rows carry the run ids of their views.
-    run_to_config = {}
-    for n in view_numbers:
-        run_to_config[n["outer"]["data-run"]] = n["outer"]["data-config"]
+            by_config[n["outer"]["data-config"]][n["field"]] = n
+    assert len(by_config) == len(ids) == len(expected)
     checked = 0
-    for key, group in groups.items():
-        ids = {run_to_config[r.run_id] for r in group}
-        assert len(ids) == 1, (key, ids)
-        numbers = by_config[ids.pop()]
-        (psnr,), _ = collect_points(group, error="psnr_masked", cost="frame_ms")
-        (flip,), _ = collect_points(group, error="flip_masked", cost="frame_ms")
-        _check(numbers["psnr_masked"], psnr.error)
-        _check(numbers["flip_masked"], flip.error)
-        _check(numbers["frame_ms"], psnr.cost)
+    for e in expected:
+        p, group = e["point"], e["rows"]
+        numbers = by_config[ids[(p.panel, p.label, e["params"])]]
+        _check(numbers["psnr_masked"], p.error)
+        _check(numbers["psnr_masked_lo"], p.error_lo)
+        _check(numbers["psnr_masked_hi"], p.error_hi)
+        _check(numbers["flip_masked"], e["flip"].error)
+        _check(numbers["frame_ms"], p.cost)
         _check(numbers["memory_mib"], group[-1].memory_bytes / 2**20)
         _check(numbers["precompute_s"], group[-1].precompute_s)
-        _check(numbers["views"], len({r.view for r in group}))
-        assert set(numbers) == {"psnr_masked", "flip_masked", "frame_ms", "memory_mib",
-                                "precompute_s", "views"}
-        checked += 6
-    stored = {(r.run_id, r.view): r for r in rows}
+        _check(numbers["views"], p.views)
+        assert p.views == len({r.view for r in group})
+        # The detail: frame components, the per-light work and the memory breakdown.
+        _check(numbers["light_change_ms"], p.light_change_ms)
+        parts = {f"frame_part:{k}": v for k, v in p.frame_components.items()}
+        parts.update({f"memory_part:{k}": v / 2**20 for k, v in p.memory_breakdown.items()})
+        assert p.frame_components and p.memory_breakdown
+        for field, value in parts.items():
+            _check(numbers[field], value)
+        assert set(numbers) == {"psnr_masked", "psnr_masked_lo", "psnr_masked_hi", "flip_masked",
+                                "frame_ms", "memory_mib", "precompute_s", "views",
+                                "light_change_ms", *parts}
+        checked += 9 + len(parts)
+        # Its views are the rows behind its point, and only those.
+        shown = {(n["outer"]["data-run"], int(n["outer"]["data-view"])) for n in view_numbers
+                 if n["outer"]["data-config"] == ids[(p.panel, p.label, e["params"])]}
+        assert shown == {(r.run_id, r.view) for r in group}
+    stored = {(r.run_id, r.view, r.method, json.dumps(r.config, sort_keys=True)): r for r in rows}
+    labels = {v: k[1] for k, v in ids.items()}
     for n in view_numbers:
-        row = stored[(n["outer"]["data-run"], int(n["outer"]["data-view"]))]
+        method, config = labels[n["outer"]["data-config"]].split(" ", 1)
+        row = stored[(n["outer"]["data-run"], int(n["outer"]["data-view"]), method, config)]
         name = n["field"][len("view_"):]
-        expected = {"frame_ms": row.frame_ms, "frame_ms_p95": row.frame_ms_p95}.get(
+        expected_value = {"frame_ms": row.frame_ms, "frame_ms_p95": row.frame_ms_p95}.get(
             name, row.metrics.get(name))
-        _check(n, expected)
+        _check(n, expected_value)
         checked += 1
-    assert checked == 6 * len(groups) + 6 * sum(len({r.view for r in g}) for g in groups.values())
+    assert checked == sum(9 + len(e["point"].frame_components) + len(e["point"].memory_breakdown)
+                          + 6 * len(e["rows"]) for e in expected)
 
 
 def test_every_number_on_the_index_is_the_stores(store, site):
     rows = ResultsStore(store, readonly=True).query()
-    groups = _configurations(rows)
+    expected = _expected(rows)
     index = _parse(site / "index.html")
-    seen = set()
-    for method in ("vertex", "irradiance-volume"):
-        mine = [g for k, g in groups.items() if k[0] == method]
-        points = [collect_points(g, error="psnr_masked", cost="frame_ms")[0][0] for g in mine]
-        flips = [collect_points(g, error="flip_masked", cost="frame_ms")[0][0].error for g in mine]
-        best = max(range(len(mine)), key=lambda i: points[i].error)
-        numbers = [n for n in index.numbers if n["row"].get("data-method") == method]
-        fields = {n["field"]: n for n in numbers}
+    by_row = defaultdict(dict)
+    for n in index.numbers:
+        by_row[(n["outer"]["data-panel"], n["outer"]["data-method"])][n["field"]] = n
+    groups = defaultdict(list)  # one overview row per panel and method
+    for e in expected:
+        groups[(e["point"].panel, e["point"].method)].append(e)
+    assert set(by_row) == set(groups)
+    for key, mine in groups.items():
+        best = max(mine, key=lambda e: e["point"].error)
+        fields = by_row[key]
         _check(fields["configs"], len(mine))
-        _check(fields["psnr_masked"], points[best].error)
-        _check(fields["flip_masked"], flips[best])
-        _check(fields["frame_ms"], points[best].cost)
-        _check(fields["memory_mib"], mine[best][-1].memory_bytes / 2**20)
-        _check(fields["best_flip_masked"], min(flips))
-        seen.add(method)
-    assert seen == {r.method for r in rows}
-    assert len(index.numbers) == 6 * len(seen)  # nothing printed that was not checked
+        _check(fields["psnr_masked"], best["point"].error)
+        _check(fields["psnr_masked_lo"], best["point"].error_lo)
+        _check(fields["psnr_masked_hi"], best["point"].error_hi)
+        _check(fields["flip_masked"], best["flip"].error)
+        _check(fields["frame_ms"], best["point"].cost)
+        _check(fields["memory_mib"], best["rows"][-1].memory_bytes / 2**20)
+        _check(fields["best_flip_masked"], min(e["flip"].error for e in mine))
+    assert len(index.numbers) == 8 * len(groups)  # nothing printed that was not checked
     footer = (site / "index.html").read_text()
     ceilings = [noise_ceiling_db(r.reference_noise) for r in rows]
     assert f"{min(ceilings):.2f} to {max(ceilings):.2f}" in footer
     assert f'data-provenance="reference spp">{rows[0].reference_spp}<' in footer
     assert rows[0].renderer in footer and rows[0].git_sha in footer and select_variant() in footer
+
+
+def _figures(page: Path) -> dict[str, dict]:
+    """The page's Pareto figures by their panel's name."""
+    text = page.read_text()
+    out = {}
+    for target, body in re.findall(r'<script type="application/json" class="pareto-data" '
+                                   r'data-target="([^"]+)">(.*?)</script>', text, re.DOTALL):
+        panel = re.search(rf'<div class="plot" id="{target}"[^>]* data-panel="([^"]+)"', text)
+        out[html.unescape(panel.group(1))] = json.loads(body)
+    return out
+
+
+def _plotted(figure: dict) -> dict[str, dict]:
+    """Configuration id -> its marker (x, y, symbol, error bar, hover text) in ``figure``."""
+    out = {}
+    for trace in figure["data"]:
+        for i, config in enumerate(trace.get("customdata") or []):
+            symbols = trace["marker"]["symbol"]
+            out[config] = {"x": trace["x"][i], "y": trace["y"][i],
+                           "symbol": symbols[i] if isinstance(symbols, list) else symbols,
+                           "above": trace["error_y"]["array"][i],
+                           "below": trace["error_y"]["arrayminus"][i],
+                           "hover": trace["hovertext"][i]}
+    return out
+
+
+def test_each_panel_is_a_plot_and_a_configuration_is_in_each_of_its_panels(store, site):
+    page = site / "scene-plants-sky-smoke.html"
+    figures = _figures(page)
+    panels = {r.panel for r in ResultsStore(store, readonly=True).query()}
+    assert set(figures) == panels and len(panels) == 3  # the sweep's and the two protocol ones
+    ids = _page_configs(_parse(page))
+    expected = _expected(ResultsStore(store, readonly=True).query())
+    for name, figure in figures.items():
+        mine = [e for e in expected if e["point"].panel == name]
+        plotted = _plotted(figure)
+        assert set(plotted) == {ids[(name, e["point"].label, e["params"])] for e in mine}
+        for e in mine:  # each point where collect_points put it, in this panel
+            marker = plotted[ids[(name, e["point"].label, e["params"])]]
+            assert (marker["x"], marker["y"]) == (e["point"].cost, e["point"].error)
+        # Titles name the reference and the view count.
+        views = int(re.search(r"views=(\d+):", name).group(1))
+        reference = re.search(r"ref=(\S+)", name).group(1)
+        assert f"reference {reference}, {views} view{'s' if views > 1 else ''}" in \
+            figure["layout"]["title"]["text"]
+    # The sweep's vertex sh_bands=2 is in all three panels; on the fixed-view panel its point
+    # is its row on that camera alone (24.4 dB), on the two-view panel the mean of both.
+    vertex = protocol_config(PROTOCOL_CELLS[0])
+    label = f"vertex {json.dumps(vertex, sort_keys=True)}"
+    assert {k[0] for k in ids if k[1] == label} == panels
+    values = {e["point"].panel: e["point"].error for e in expected if e["point"].label == label}
+    assert values[PANEL_FIXED_VIEW] == 24.4 and values[PANEL_TWO_VIEWS] == pytest.approx(24.2)
+    text = page.read_text()
+    assert text.count('<section class="panel"') == 3
+    assert "reference path/b1/32spp, 2 views</h3>" in text
+
+
+def test_diagnostic_configs_and_trained_rows_are_listed_not_plotted(store, site):
+    page = site / "scene-plants-sky-smoke.html"
+    text = html.unescape(page.read_text())
+    unplotted = re.findall(r"<li>(.*?)</li>", text[text.index('id="unplotted"'):], re.DOTALL)
+    diagnostic, trained_only = PROTOCOL_CELLS[4], PROTOCOL_CELLS[5]
+    diagnostic_label = f"neural-wavelet {json.dumps(protocol_config(diagnostic), sort_keys=True)}"
+    trained_label = f"neural-wavelet {json.dumps(protocol_config(trained_only), sort_keys=True)}"
+    # Never on a plot or in a table.
+    ids = _page_configs(_parse(page))
+    assert not [k for k in ids if k[1] in (diagnostic_label, trained_label)]
+    assert "neural-wavelet" not in json.dumps(_figures(page))
+    # Listed, with the protocol's reason.
+    (line,) = [s for s in unplotted if diagnostic_label in s]
+    assert "a diagnostic configuration" in line and "pixels from the reference renderer" in line
+    (line,) = [s for s in unplotted if trained_label in s]
+    assert "trained on, not ranked" in line and PANEL_TWO_VIEWS in line
+    # data-driven: its in-family row is ranked, its trained row is listed on its own.
+    trained_rows = [s for s in unplotted if s.startswith("[ground_subdivisions=1] data-driven")]
+    assert any("view 1" in s and "split 'trained'" in s and PANEL_TWO_VIEWS in s
+               for s in trained_rows), trained_rows
+    # On the fixed-view panel (the trained camera) it has no ranked row at all.
+    assert any("trained on, not ranked" in s and PANEL_FIXED_VIEW in s for s in trained_rows)
+    data_driven = [e for e in _expected(ResultsStore(store, readonly=True).query())
+                   if e["point"].method == "data-driven"]
+    assert [(e["point"].panel, e["point"].views, e["point"].error) for e in data_driven] == \
+        [(PANEL_TWO_VIEWS, 1, 26.0)]
+
+
+def _row_html(text: str, config: str) -> str:
+    """The HTML of configuration ``config``'s row in a scene page."""
+    start = text.index(f'<tr class="config" id="{config}"')
+    return text[start:text.index("</tr>", start)]
+
+
+def test_intervals_light_classes_and_ties_are_shown(store, site):
+    page = site / "scene-plants-sky-smoke.html"
+    text = html.unescape(page.read_text())
+    ids = _page_configs(_parse(page))
+    expected = _expected(ResultsStore(store, readonly=True).query())
+    figures = {name: _plotted(f) for name, f in _figures(page).items()}
+    symbols = {"relight": "circle", "family": "diamond", "fixed": "square"}
+    classes = set()
+    for e in expected:
+        p = e["point"]
+        config = ids[(p.panel, p.label, e["params"])]
+        marker = figures[p.panel][config]
+        interval = f"{fmt(p.error)} dB [{fmt(p.error_lo)}, {fmt(p.error_hi)}]"
+        # The error with its interval in the tooltip, the row and its detail.
+        assert interval in marker["hover"] and f"masked PSNR {interval}" in text
+        assert marker["above"] == pytest.approx(p.error_hi - p.error)
+        assert marker["below"] == pytest.approx(p.error - p.error_lo)
+        assert f"light class {p.light_class}, split {p.split}" in marker["hover"]
+        assert marker["symbol"] == symbols[p.light_class] + ("" if not p.dominated else "-open")
+        assert f'data-light-class="{p.light_class}"' in _row_html(text, config)
+        classes.add(p.light_class)
+    assert classes == set(symbols)  # the store has every class
+    for name in figures:  # a legend entry per light class of the panel, drawing nothing
+        legend = [t for t in _figures(page)[name]["data"] if t.get("legendgroup") == "light class"]
+        assert {t["name"] for t in legend} == {e["point"].light_class for e in expected
+                                               if e["point"].panel == name}
+        assert all(t["x"] == [None] for t in legend)
+    # vertex sh_bands=3 costs more than sh_bands=2 for an error within its intervals: a tie,
+    # in both protocol panels, naming the configuration it ties with.
+    for panel in (PANEL_TWO_VIEWS, PANEL_FIXED_VIEW):
+        tied = [e for e in expected if e["point"].panel == panel and e["point"].tied_with]
+        assert [e["point"].config["sh_bands"] for e in tied] == [3]
+        config = ids[(panel, tied[0]["point"].label, tied[0]["params"])]
+        rival = ids[(panel, tied[0]["point"].tied_with[0], tied[0]["params"])]
+        assert f'<td class="front" data-front="tie" title="ties with {rival} vertex: sh_bands=2' \
+            in _row_html(text, config)
+        assert f"tie: within the intervals of {rival} vertex" in figures[panel][config]["hover"]
 
 
 def test_table_page_equals_the_table_from_the_store(store, site, tmp_path):
@@ -341,7 +528,6 @@ def test_rows_without_cached_images_are_shown_without_images(store, tmp_path):
 
 
 def test_stability_page_colours_each_outcome_and_prints_the_stored_numbers(store, tmp_path):
-    import re
     import shutil
 
     copy = tmp_path / "store.sqlite"

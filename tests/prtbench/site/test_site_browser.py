@@ -23,8 +23,9 @@ import pytest
 from prtbench.site.build import MARKER, build
 from prtbench.site.data import slug
 from prtbench.store.results import ResultsStore
+from prtbench.tradeoff.front import collect_points
 from tests.prtbench.site import chromium
-from tests.prtbench.site.site_store import add_stability, make_store
+from tests.prtbench.site.site_store import add_protocol_rows, add_stability, make_store
 
 pytestmark = [pytest.mark.browser,
               pytest.mark.skipif(chromium.executable() is None,
@@ -76,16 +77,18 @@ def _stage(browser) -> tuple[dict, np.ndarray]:
 
 
 def _configurations(store: Path) -> dict[tuple, int]:
-    """(scene, light, profile) -> configurations with a finite frame time, counted from the
-    store here (the same grouping as prtbench.site.data, written out independently)."""
-    groups = defaultdict(set)
+    """(scene, light, profile) -> configurations with a finite frame time, one per protocol
+    panel: front.py's collect_points on each set of scene parameters (what the site plots,
+    counted here from the store without prtbench.site)."""
+    groups = defaultdict(list)
     for r in ResultsStore(store, readonly=True).query(status="ok"):
-        if r.reference_kind == "path" and r.frame_ms is not None and math.isfinite(r.frame_ms) \
-                and r.metrics.get("psnr_masked") is not None:
-            groups[(r.scene, r.light, r.profile)].add(
-                (r.method, json.dumps(r.config, sort_keys=True),
-                 json.dumps(r.scene_params, sort_keys=True), r.scene_variant, r.width, r.height))
-    return {k: len(v) for k, v in groups.items()}
+        if r.reference_kind == "path":
+            groups[(r.scene, r.light, r.profile, json.dumps(r.scene_params, sort_keys=True))].append(r)
+    counts: dict[tuple, int] = defaultdict(int)
+    for (scene, light, profile, _), rows in groups.items():
+        points, _ = collect_points(rows, error="psnr_masked", cost="frame_ms")
+        counts[(scene, light, profile)] += sum(math.isfinite(p.cost) for p in points)
+    return dict(counts)
 
 
 @pytest.fixture(scope="module")
@@ -98,6 +101,7 @@ def browser():
 def smoke_site(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("browser-site")
     store = make_store(folder, table=False)
+    add_protocol_rows(store)  # three panels, every light class, rows without cached images
     add_stability(store)
     build(results_path=store, out=folder / "site", echo=False)
     return folder / "site"
@@ -169,16 +173,20 @@ def _check_site(site: Path, browser, *, screenshots: Path | None) -> None:
     box, bright = _stage(browser)
     assert "+2 EV" in label() and bright.mean() > method.mean() + 2.0
     browser.key("0", "Digit0", 48)
-    # A click on a Pareto point opens that configuration's images.
+    # A click on a Pareto point opens that configuration's images (the last point of a
+    # configuration that has cached images).
     target = browser.evaluate("""(() => {
-        const p = document.querySelectorAll('.plot .scatterlayer path.point');
+        const data = JSON.parse(document.getElementById('compare-data').textContent);
+        const shown = new Set(data.configs.filter((c) => Object.keys(c.views).length).map((c) => c.id));
+        const p = [...document.querySelectorAll('.plot .scatterlayer path.point')].filter(
+            (e) => e.__data__ && shown.has(e.__data__.data));
         const last = p[p.length - 1]; last.scrollIntoView({block: 'center'});
         const r = last.getBoundingClientRect();
         return {x: r.x + r.width / 2, y: r.y + r.height / 2,
-                id: last.__data__ && last.__data__.data ? last.__data__.data.customdata : null}; })()""")
+                id: last.__data__.data}; })()""")
     browser.click(target["x"], target["y"])
     chosen = browser.evaluate("location.hash.slice(1)")
-    assert chosen and label().startswith(chosen + " "), (chosen, label())
+    assert chosen == target["id"] and label().startswith(chosen + " "), (chosen, target, label())
     assert browser.console_errors == [], browser.console_errors
     if screenshots is not None:
         browser.open(site / "index.html")

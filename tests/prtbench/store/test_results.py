@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from prtbench.api.errors import InvalidInputError, UnknownNameError
-from prtbench.store import results
+from prtbench.store import results, table
 from prtbench.store.results import ResultRow, ResultsStore
 
 
@@ -191,13 +191,13 @@ def test_git_sha(tmp_path):
 def test_format_rows():
     rows = [_row(metrics={"psnr": math.inf, "psnr_masked": 27.25}),
             _row(method="texture", memory_bytes=None, metrics={"psnr": 30.123456})]
-    table = results.format_rows(rows, columns=["method", "size", "psnr", "psnr_masked", "memory_bytes"])
-    lines = table.splitlines()
+    text = table.format_rows(rows, columns=["method", "size", "psnr", "psnr_masked", "memory_bytes"])
+    lines = text.splitlines()
     assert len(lines) == 4
     assert lines[0].split() == ["method", "size", "psnr", "psnr_masked", "memory_bytes"]
     assert lines[2].split() == ["vertex", "64x48", "inf", "27.25", "123456"]
     assert lines[3].split() == ["texture", "64x48", "30.12", "-", "-"]
-    assert "psnr" in results.format_rows(rows)  # default columns
-    assert results.format_rows([]) == "(no results)"
+    assert "psnr" in table.format_rows(rows)  # default columns
+    assert table.format_rows([]) == "(no results)"
     with pytest.raises(UnknownNameError):
-        results.format_rows(rows, columns=["methd"])
+        table.format_rows(rows, columns=["methd"])

@@ -7,6 +7,7 @@ import hashlib
 import importlib.util
 import json
 import math
+import re
 from types import SimpleNamespace
 
 import pytest
@@ -15,12 +16,14 @@ from prtbench.api.errors import InvalidInputError, PrtbenchError, UnknownNameErr
 from prtbench.bench.submit import JobResult
 from prtbench.scene.registry import get_scene
 from prtbench.tradeoff import advise as advise_mod
-from prtbench.tradeoff.advise import CellResult, advise, format_advice
+from prtbench.tradeoff.advice_text import format_advice
+from prtbench.tradeoff.advise import CellResult, advise
 from prtbench.tradeoff.expressions import parse_constraints
 from prtbench.tradeoff.search_space import build_space
 
 JSON_KEYS = {"method", "config", "metrics", "frame_ms", "memory_bytes", "precompute_s",
-             "cost_kind", "evaluated", "grid_size", "runner_up", "pruned", "analysis"}
+             "cost_kind", "evaluated", "grid_size", "runner_up", "pruned", "analysis", "steps",
+             "total_s"}
 
 
 def analysis(**changes):
@@ -89,17 +92,23 @@ def test_a_diffuse_scene_prunes_glossy_only_and_misfit_methods():
     assert "needs an SDF scene" in _why(space, "learnt-sdf")  # the method's own validation
     assert "always models interreflection" in _why(space, "data-driven")
     assert {"vertex", "irradiance-volume", "texture-tp", "texture-tpfl"} <= set(kept)
-    assert kept["vertex"].ladders["sh_bands"] == [3, 4, 5]  # required .. required + margin
+    # Every band from the knob's low up to required + margin; the search starts at required.
+    assert kept["vertex"].ladders["sh_bands"] == [1, 2, 3, 4, 5]
+    assert kept["vertex"].start.overrides == {"sh_bands": 3, "bounces": 0}
     assert kept["vertex"].fixed == {"bounces": 0}
     # Vertices resolve the shadows: no texture resolution above the profile's (quick: 256).
     assert kept["texture-tp"].ladders["texture_resolution"] == [128, 256]
     assert kept["irradiance-volume"].ladders["resolution"] == [4, 8, 16]  # ×2 around 8
-    # 33, + 9 for wavelet-vertex (generic ladders: light_terms 50/100/200 × cubemap 16/32/64)
-    # + 6 for wavelet-texture (light_terms × the analysed texture_resolution, as texture-tp).
+    assert kept["irradiance-volume"].start.overrides == {"resolution": 8, "sh_bands": 3}
+    # 55 (bands 1-5: vertex 5, irradiance-volume 15, texture-tp and texture-tpfl 10 each,
+    # learnt 15 with hidden 32/64/128), + 9 for wavelet-vertex (generic ladders: light_terms 50/100/200 × cubemap 16/32/64)
+    # + 6 for wavelet-texture (light_terms × the analysed texture_resolution, as texture-tp)
+    # + 8 for the engine baselines (ao-bent-normal 1, ao-bent-normal-texture and lightmap 2
+    # each, probe-volume's resolution 10/19/38).
     assert kept["wavelet-vertex"].ladders == {"light_terms": [50, 100, 200], "cubemap": [16, 32, 64]}
     assert kept["wavelet-texture"].ladders == {"light_terms": [50, 100, 200],
                                                "texture_resolution": [128, 256]}
-    assert space.size == sum(len(m.candidates) for m in space.methods) == 48
+    assert space.size == sum(len(m.candidates) for m in space.methods) == 78
     # Every registered method is either searched or pruned with its reason.
     from prtbench.api.method import METHODS
 
@@ -112,7 +121,8 @@ def test_a_glossy_scene_keeps_glossy_methods_with_the_lobe_bands():
                         profile="quick")
     kept = {m.method: m for m in space.methods}
     assert "diffuse" in _why(space, "vertex") and "diffuse" in _why(space, "irradiance-volume")
-    assert kept["vertex-tp"].ladders["sh_bands"] == [5, 6, 7]
+    assert kept["vertex-tp"].ladders["sh_bands"] == [1, 2, 3, 4, 5, 6, 7]
+    assert kept["vertex-tp"].start.overrides["sh_bands"] == 5  # the lobe's bands
     assert kept["texture-tpfl"].ladders["texture_resolution"] == [128, 256, 512]
 
 
@@ -130,7 +140,10 @@ def test_changing_lights_and_bounces_prune_what_cannot_follow(monkeypatch):
     assert "depends on the light (fixed-light)" in _why(space, "irradiance-volume")
     assert "depends on the light (family)" in _why(space, "data-driven")
     kept = {m.method: m for m in space.methods}
-    assert kept["vertex"].ladders["bounces"] == [1, 2]
+    # Interreflection matters, so the search starts at one bounce; none stays a candidate
+    # (the 5 % threshold is not the user's target).
+    assert kept["vertex"].ladders["bounces"] == [0, 1, 2]
+    assert kept["vertex"].start.overrides["bounces"] == 1
     # A method that follows any light but has no bounces knob cannot model interreflection.
     monkeypatch.setattr(METHODS.get("irradiance-volume"), "light_dependence", "none")
     space = build_space(get_scene("plants"), analysis(fixed_light_ok=False, needs_bounces=True),
@@ -142,7 +155,8 @@ def test_bands_beyond_a_methods_range_are_recorded_as_a_shortfall():
     space = build_space(get_scene("sphere-over-plane"), analysis(required_bands=11),
                         profile="smoke", methods=["vertex"])
     vertex = space.methods[0]
-    assert vertex.fixed["sh_bands"] == 8 and len(vertex.candidates) == 1
+    assert vertex.ladders["sh_bands"] == list(range(1, 9)) and len(vertex.candidates) == 8
+    assert vertex.start.overrides["sh_bands"] == 8  # the search starts at the top
     assert "asks for 11 bands; vertex stops at 8" in vertex.shortfalls["sh_bands"]
 
 
@@ -207,6 +221,18 @@ def exhaustive(space, profile, target, budget, cost):
     return best
 
 
+#: (scene, light, analysed bands, grid size). The first is what the advisor was developed on;
+#: the others are scenes and lights it never saw, with an analysis that asks for more bands
+#: than the target needs (the held-out case of issue 53: the cheaper bands must still be
+#: found) or fewer.
+SCENES_LIGHTS = [
+    ("sphere-over-plane", None, 2, 6 + 18 + 6 * 2),  # bands 1-6
+    pytest.param("dining-table", "purple", 5, 8 + 24 + 8 * 2, id="held-out-dining-table-purple"),
+    pytest.param("living-room", "sun", 3, 7 + 21 + 7 * 2, id="held-out-living-room-sun"),
+]
+
+
+@pytest.mark.parametrize("scene, light, bands, size", SCENES_LIGHTS)
 @pytest.mark.parametrize("profile", ["smoke", "quick"])
 @pytest.mark.parametrize("cost", ["frame_ms", "memory"])
 @pytest.mark.parametrize("target, budget", [
@@ -214,13 +240,13 @@ def exhaustive(space, profile, target, budget, cost):
     ("psnr_masked>=32", ""), ("psnr_masked>=34,flip_masked<=0.06", ""),
     ("psnr_masked>=28", "frame_ms<=4"), ("psnr_masked>=27", "memory<=40KiB"),
 ])
-def test_the_advisor_matches_exhaustive_search_for_fewer_cells(profile, cost, target, budget):
-    a = analysis(required_bands=2)
-    space = build_space(get_scene("sphere-over-plane"), a, profile=profile, methods=METHODS3,
-                        band_margin=4)
-    assert space.size == 5 + 15 + 5 * 2
+def test_the_advisor_matches_exhaustive_search_for_fewer_cells(profile, cost, target, budget,
+                                                                scene, light, bands, size):
+    a = analysis(required_bands=bands)
+    space = build_space(get_scene(scene), a, profile=profile, methods=METHODS3, band_margin=4)
+    assert space.size == size  # every band from 1: the analysis only says where to start
     evaluate, verify = Recorder(), Recorder()
-    advice = advise("sphere-over-plane", target=target, budget=budget, cost=cost, profile=profile,
+    advice = advise(scene, light, target=target, budget=budget, cost=cost, profile=profile,
                     analysis=a, evaluate=evaluate, verify=verify, methods=METHODS3, band_margin=4)
     best = exhaustive(space, profile, target, budget, cost)
     assert math.isfinite(best)  # every case here is reachable
@@ -246,6 +272,35 @@ def test_the_advisor_matches_exhaustive_search_for_fewer_cells(profile, cost, ta
     runner_up = doc["runner_up"]
     assert runner_up is not None and (runner_up["method"], runner_up["config"]) != (
         doc["method"], doc["config"])
+
+
+def test_a_cheap_near_miss_at_screening_is_not_dropped_for_a_dear_hit():
+    # At smoke (1 dB below quick here) irradiance-volume resolution=4 sh_bands=6 misses
+    # psnr_masked >= 30 by 0.03 dB, while texture-tp meets it at 38x the memory: ranking the
+    # screened methods by shortfall kept texture-tp and dropped the cheapest answer.
+    evaluate = Recorder()
+    advice = advise("sphere-over-plane", target="psnr_masked>=30", cost="memory",
+                    profile="quick", analysis=analysis(required_bands=2), evaluate=evaluate,
+                    verify=Recorder(), methods=METHODS3, band_margin=4)
+    assert (advice.choice.candidate.method, advice.choice.candidate.overrides) == (
+        "irradiance-volume", {"resolution": 4, "sh_bands": 6})
+    assert {m for p, m, _ in evaluate.calls if p == "quick"} == {"irradiance-volume", "vertex"}
+    assert "texture-tp" in {p["method"] for p in advice.pruned}
+
+
+def test_the_analysis_orders_the_search_but_never_ends_it():
+    # The analysis asks for 6 bands; the target needs 3. The search starts at 6 and must come
+    # down to 3 by measurement alone (issue 53: 5 bands picked where the default met it).
+    evaluate = Recorder()
+    advice = advise("sphere-over-plane", target="psnr_masked>=26", cost="memory",
+                    profile="smoke", analysis=analysis(required_bands=6), evaluate=evaluate,
+                    verify=Recorder(), methods=["vertex"])
+    assert evaluate.calls[0] == ("smoke", "vertex", (("bounces", 0), ("sh_bands", 6)))
+    assert advice.met and advice.choice.candidate.overrides["sh_bands"] == 4  # 20 + 2b - 1 >= 26
+    # Every band left unmeasured is decided by a measurement: 1 and 2 by 3's clear miss,
+    # 7 and 8 by 6 meeting the target (more memory for nothing).
+    measured = [dict(k)["sh_bands"] for _, _, k in evaluate.calls]
+    assert sorted(measured) == [3, 4, 5, 6]
 
 
 def test_an_unreachable_target_reports_the_closest_and_what_is_needed():
@@ -341,7 +396,7 @@ def test_a_real_search_verifies_its_pick_and_stores_its_rows(tmp_path):
     advice = advise("sphere-over-plane", target="psnr_masked>=24", cost="memory", profile="smoke",
                     analysis=analysis(required_bands=2), methods=["vertex", "irradiance-volume"],
                     results_path=store)
-    assert advice.met and advice.grid_size == 3 + 9
+    assert advice.met and advice.grid_size == 4 + 12  # bands 1-4
     assert advice.evaluated < advice.grid_size
     doc = _strict(strict_json.dumps(advice.to_json()))
     assert set(doc) == JSON_KEYS and doc["cost_kind"] == "memory"
@@ -361,7 +416,7 @@ def test_cli_unreachable_target_exits_1_with_the_closest_and_a_hint(tmp_path, mo
     from prtbench.cli import main
 
     monkeypatch.setattr(advise_mod, "analyze_scene",
-                        lambda scene, light, *, light_changes: analysis(required_bands=3))
+                        lambda scene, light, *, light_changes, progress: analysis(required_bands=3))
     out = tmp_path / "advice.json"
     code = main(["advise", "--scene", "sphere-over-plane", "--target", "psnr_masked>=60",
                  "--method", "vertex", "--band-margin", "1", "--profile", "smoke", "--cost",
@@ -370,9 +425,17 @@ def test_cli_unreachable_target_exits_1_with_the_closest_and_a_hint(tmp_path, mo
     assert code == 1
     assert "closest (target not reached)" in captured.out
     assert "prtbench: target not reached" in captured.err and "sh_bands" in captured.err
+    assert "[advise]" not in captured.err  # --quiet: no progress
     doc = _strict(out.read_text())
-    assert set(doc) == JSON_KEYS and doc["method"] == "vertex" and doc["config"]["sh_bands"] == 4
-    assert doc["evaluated"] == 1 and doc["grid_size"] == 2  # the top failed: the rest is implied
+    # Bands 1-4; the analysed 3 and the top 4 miss clearly, so 1 and 2 are implied; the
+    # closest of the two measured is the answer.
+    assert set(doc) == JSON_KEYS and doc["method"] == "vertex" and doc["config"]["sh_bands"] in (3, 4)
+    assert doc["evaluated"] == 2 and doc["grid_size"] == 4
+    # The step times are recorded even when quiet (smoke: no screening step).
+    assert [s["step"] for s in doc["steps"]] == ["scene", "analysis", "pruning", "search",
+                                                 "verification"]
+    assert [s["cells"] for s in doc["steps"]] == [0, 0, 0, 2, 1]
+    assert sum(s["seconds"] for s in doc["steps"]) <= doc["total_s"]
 
 
 @pytest.mark.parametrize("extra, fragment", [
@@ -404,8 +467,8 @@ def test_cli_scene_params_reach_the_scene_and_every_cell(tmp_path, monkeypatch, 
     from prtbench.cli import main
 
     scenes = []
-    monkeypatch.setattr(advise_mod, "analyze_scene", lambda scene, light, *, light_changes:
-                        scenes.append(scene) or analysis(required_bands=2))
+    monkeypatch.setattr(advise_mod, "analyze_scene", lambda scene, light, *, light_changes,
+                        progress: scenes.append(scene) or analysis(required_bands=2))
     cells = []
 
     def evaluate(batch, *, profile, **_):  # the verification run
@@ -435,6 +498,63 @@ def test_cli_scene_params_reach_the_scene_and_every_cell(tmp_path, monkeypatch, 
     assert scene.content_hash() != get_scene("sphere-over-plane").content_hash()
     # Screening and verification cells carry the parameter to their runs.
     assert len(cells) >= 2 and all(dict(c.scene_params) == {"radius": "0.3"} for c in cells)
+
+
+def _fake_runs(monkeypatch, cells=None):
+    """The CLI's runs replaced by the synthetic table: the verification (``evaluate_jobs``)
+    and the search's pool (``JobPool``)."""
+    cells = [] if cells is None else cells
+
+    def evaluate(batch, *, profile, **_):
+        cells.extend(batch)
+        return Recorder()(batch, profile=profile)
+
+    class Pool:
+        def __init__(self, executor, **_):
+            self.executor, self.queue = executor, []
+
+        def submit(self, job, *, profile, token):
+            cells.append(job)
+            self.queue.append((token, Recorder()([job], profile=profile)[0]))
+
+        def next_finished(self):
+            token, rows = self.queue.pop(0)
+            return token, JobResult(None, "", "done", rows=rows)
+
+    monkeypatch.setattr(advise_mod, "evaluate_jobs", evaluate)
+    monkeypatch.setattr(advise_mod, "JobPool", Pool)
+    return cells
+
+
+def test_cli_says_each_step_and_its_time_on_stderr(tmp_path, monkeypatch, capsys):
+    from prtbench.cli import main
+
+    monkeypatch.setattr(advise_mod, "analyze_scene", lambda scene, light, *, light_changes,
+                        progress: analysis(required_bands=2))
+    _fake_runs(monkeypatch)
+    out = tmp_path / "advice.json"
+    code = main(["advise", "--scene", "sphere-over-plane", "--light", "sun", "--target",
+                 "psnr_masked>=28", "--method", "vertex", "--method", "irradiance-volume",
+                 "--method", "texture-tp", "--profile", "quick", "--cost", "memory",
+                 "--band-margin", "4", "--results", str(tmp_path / "r.sqlite"),
+                 "--json", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    lines = [line for line in captured.err.splitlines() if line.startswith("[advise] ")]
+    assert lines == captured.err.splitlines()  # progress only, one prefix
+    steps = ["scene", "analysis", "pruning", "screening", "search", "verification"]
+    for name in steps:  # each step says how long it took
+        assert any(re.match(rf"\[advise\] {name}: \d+\.\d s", line) for line in lines), name
+    assert re.search(r"\[advise\] scene: \d+\.\d s; [\d,]+ triangles, light sun", captured.err)
+    assert re.search(r"\[advise\] screening: \d+\.\d s, \d+ cells; kept ", captured.err)
+    assert re.search(r"\[advise\] total: \d+\.\d s", lines[-1])
+    assert "[advise]" not in captured.out
+    assert re.search(r"^time: scene \d+\.\d s, analysis .*; total \d+\.\d s$", captured.out,
+                     re.MULTILINE)
+    doc = _strict(out.read_text())
+    assert [s["step"] for s in doc["steps"]] == steps
+    assert doc["steps"][3]["profile"] == "smoke" and doc["steps"][4]["profile"] == "quick"
+    assert doc["steps"][3]["cells"] + doc["steps"][4]["cells"] == doc["evaluated"]
 
 
 def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
@@ -468,9 +588,12 @@ def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
     space = method_space(Probe, "probe", scene, analysis(required_bands=5, needs_shadows=False),
                          profile="smoke")
     assert space.ladders == {"probes": [4, 8, 16], "taps": [2, 3, 4], "mode": ["a", "b"],
-                             "sh_bands": [5, 6]}
+                             "sh_bands": [1, 2, 3, 4, 5, 6]}
     assert space.fixed == {"visibility": False}  # needs_shadows false: unshadowed only
-    assert len(space.candidates) == 3 * 3 * 2 * 2
+    assert len(space.candidates) == 3 * 3 * 2 * 6
+    # The search starts at the profile's defaults and the analysed bands.
+    assert space.start.overrides == {"probes": 8, "taps": 3, "mode": "a", "sh_bands": 5,
+                                     "visibility": False}
     low = next(c for c in space.candidates if c.overrides["probes"] == 4
                and c.overrides["taps"] == 2 and c.overrides["sh_bands"] == 5)
     high = next(c for c in space.candidates if c.overrides["probes"] == 16
@@ -481,3 +604,63 @@ def test_generic_ladders_and_the_visibility_rule_come_from_the_config_fields():
     assert not low.below(other_mode) and not other_mode.below(low)  # choices do not compare
     shadowed = method_space(Probe, "probe", scene, analysis(needs_shadows=True), profile="smoke")
     assert "visibility" not in shadowed.fixed and "visibility" not in shadowed.ladders
+
+
+@pytest.mark.parametrize("lo, met", [(29.5, False), (30.2, True)])
+def test_a_target_is_met_by_the_lower_end_of_the_interval(lo, met):
+    # Two views at 30.4 dB mean: the target psnr_masked >= 30 is met only when the interval
+    # (the reference's noise and the spread over views) keeps its lower end above 30.
+    from prtbench.tradeoff.search import Judge
+
+    judge = Judge(parse_constraints("psnr_masked>=30"), "frame_ms",
+                  lambda row, kind: float(row[kind]))
+    rows = [{"metrics": {"psnr_masked": 30.4 + d}, "psnr_masked_lo": lo + d,
+             "psnr_masked_hi": 31.0 + d, "frame_ms": 2.0, "status": "ok"} for d in (0.0, 0.001)]
+    evaluation = judge(None, "smoke", CellResult(rows))
+    assert evaluation.values["psnr_masked"] == pytest.approx(30.4005)
+    assert evaluation.feasible is met
+
+
+# --- held-out scenes and lights, real measurements against exhaustive search -------------------
+
+#: Scenes and lights the advisor was not developed on (its tests use sphere-over-plane, the
+#: demo plants under sky). dining-table under purple is issue 53's held-out case: the analysis
+#: asks for 5 bands where 2 meet the target for a sixth of the memory.
+HELD_OUT = [("dining-table", "purple"), ("living-room", "sun")]
+
+
+@pytest.mark.slow  # the whole grid is measured (2-3 minutes a scene on 2 cores)
+@pytest.mark.parametrize("scene, light", HELD_OUT)
+def test_held_out_scenes_land_within_1_25x_of_exhaustive_search(scene, light):
+    from prtbench.bench.job import Job
+    from prtbench.tradeoff.analyze import analyze_scene
+    from prtbench.tradeoff.cost import cost_value
+    from prtbench.tradeoff.search import Judge
+    from prtbench.transport.lights import get_light
+
+    methods = ["vertex", "irradiance-volume"]
+    a = analyze_scene(get_scene(scene), get_light(light), fast=True)
+    space = build_space(get_scene(scene), a, profile="smoke", methods=methods)
+    candidates = [c for m in space.methods for c in m.candidates]
+    jobs = [Job(method=c.method, scene=scene, light=light, overrides=c.overrides,
+                reference_bounces=1) for c in candidates]
+    table = {(c.method, tuple(sorted(c.overrides.items()))): r
+             for c, r in zip(candidates, advise_mod.evaluate_jobs(jobs, profile="smoke"))}
+    assert all(r.rows for r in table.values()), [r.error for r in table.values() if not r.rows]
+
+    # A target the measured grid reaches: 1 dB below its best pessimistic end.
+    best_lo = max(min(float(row["psnr_masked_lo"]) for row in r.rows) for r in table.values())
+    target = f"psnr_masked>={math.floor((best_lo - 1.0) * 10) / 10}"
+    judge = Judge(parse_constraints(target), "memory", cost_value)
+    judged = [judge(c, "smoke", table[(c.method, tuple(sorted(c.overrides.items())))])
+              for c in candidates]
+    best = min(e.cost for e in judged if e.feasible)
+
+    def replay(cells, *, profile):
+        return [table[(c.method, tuple(sorted(c.overrides.items())))] for c in cells]
+
+    advice = advise(scene, light, target=target, cost="memory", profile="smoke", analysis=a,
+                    evaluate=replay, verify=replay, methods=methods)
+    assert advice.met and advice.choice.cost <= 1.25 * best, (
+        target, advice.choice.candidate, advice.choice.cost, best)
+    assert advice.evaluated < len(candidates)
