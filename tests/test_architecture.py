@@ -28,7 +28,8 @@ ROOT = CORE.parent
 METHOD_SHADERS = [p for p in (ROOT / "methods").rglob("shaders") if p.is_dir()]
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.MULTILINE)
 #: Includes generated at run time and handed to load_program as virtual files.
-GENERATED = {"scene_sdf.glsl", "learnt_weights.glsl", "learnt_partition_data.glsl"}
+GENERATED = {"scene_sdf.glsl", "learnt_weights.glsl", "learnt_partition_data.glsl",
+             "probe_decode.glsl"}
 #: Modules allowed past :data:`MAX_LINES`: one noun's catalogue each (docs/ARCHITECTURE.md).
 CATALOGUES = {"prtbench/transport/sdf/nodes.py"}
 MAX_LINES = 500
