@@ -101,6 +101,8 @@ class Lightmap(Method):
              "Material of Halo 3, SIGGRAPH course), SH L1 / irradiance (Lagarde and de Rousiers "
              "2014, Moving Frostbite to PBR), the H-basis (Habel and Wimmer 2010, Efficient "
              "Irradiance Normal Mapping, I3D); irradiance of Ramamoorthi and Hanrahan 2001")
+    # An engine bakes its lightmaps offline; re-baking on a light change is not a frame's work.
+    light_class = "fixed"
     light_dependence = "fixed-light"
     light_dependence_why = ("bakes the light into the lightmap: Γ·V·L per texel on the CPU once per "
                             "light (or in the precompute with bake_light)")

@@ -139,6 +139,7 @@ class ProbeVolume(Method):
              "McTaggart 2004, Half-Life 2 / Valve Source Shading (GDC): the ambient cube; "
              "Ramamoorthi and Hanrahan 2001: the irradiance")
     light_dependence = "none"
+    baked_light_knobs = {"light_mode": "relight"}  # light_mode=fixed: the protocol's `fixed`
     light_baking_knobs = {"light_mode": ("fixed-light", "relight", "light_mode=fixed bakes one "
                                          "light's radiance into the probes")}
     profile_overrides = {

@@ -20,7 +20,7 @@ from prtbench.api.config import format_bytes
 from prtbench.api.errors import InvalidInputError, PrtbenchError
 from prtbench.store.results import ResultsStore, default_path
 from prtbench.tradeoff.cost import OPS_WEIGHTS
-from prtbench.tradeoff.front import Point, collect_points, knobs_text, mark_fronts
+from prtbench.tradeoff.front import ERRORS, Point, collect_points, knobs_text, mark_fronts
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
@@ -52,13 +52,18 @@ def _knobs(config: Mapping[str, Any], keys: Sequence[str] | None = None) -> str:
     return " ".join(f"{k}={config[k]}" for k in keys if k in config) or "(defaults)"
 
 
-def _config_point(points: Sequence[Point], method: str, config: Mapping[str, Any]
-                  ) -> Point | None:
-    """The stored point of ``method`` whose config agrees with ``config`` on its keys."""
-    for p in points:
-        if p.method == method and all(p.config.get(k) == v for k, v in config.items()):
-            return p
-    return None
+def _config_point(points: Sequence[Point], method: str, config: Mapping[str, Any], *,
+                  psnr: float | None = None) -> Point | None:
+    """The stored point of ``method`` whose config agrees with ``config`` on its keys; of
+    several (the same configuration in the sweep's panel, a fixed-view panel and the advice's
+    own verification run), the one whose mean is the advised value."""
+    matches = [p for p in points
+               if p.method == method and all(p.config.get(k) == v for k, v in config.items())]
+    if not matches:
+        return None
+    if psnr is None:
+        return max(matches, key=lambda p: p.views)
+    return min(matches, key=lambda p: (abs(p.error_unclipped - psnr), -p.views))
 
 
 def _interval(p: Point | None) -> str:
@@ -81,21 +86,34 @@ def _cost_text(entry: Mapping[str, Any], point: Point | None, renderer: str) -> 
 
 
 def _front_lines(points: Sequence[Point]) -> list[str]:
-    """The front of the panel with most configurations, in at most three lines."""
+    """The front of the main panel, in at most three lines: the panel with most configurations
+    among those scored on more than one view (a fixed-view panel re-scores the same rows on one
+    view; it is the main panel only when there is no other)."""
     panels: dict[str, list[Point]] = {}
     for p in points:
         panels.setdefault(p.panel, []).append(p)
     if not panels:
         return ["  (no stored front)"]
-    panel, members = max(panels.items(), key=lambda kv: len(kv[1]))
+    panel, members = max(panels.items(), key=lambda kv: (
+        max(p.views for p in kv[1]) > 1, len(kv[1]), max(p.views for p in kv[1])))
     front = sorted((p for p in members if p.dominated is False), key=lambda p: p.cost)
     if not front:
         return [f"  (no configuration of panel {panel} has a finite cost)"]
-    picks = [front[0]] if len(front) == 1 else (
-        front if len(front) <= 3 else [front[0], front[len(front) // 2], front[-1]])
-    labels = ["cheapest", "middle", "best"] if len(picks) == 3 else (
-        ["cheapest", "best"] if len(picks) == 2 else ["only"])
-    out = [f"  the front ({len(front)} of {len(members)} configurations; {panel}):"]
+    # The cheapest, the most accurate and one between them by cost: with few views the
+    # intervals keep many points on the front, and the costliest of them need not be the best.
+    sign = 1.0 if ERRORS["psnr_masked"] else -1.0
+    best = max(front, key=lambda p: sign * p.error)
+    between = [p for p in front if p.cost < best.cost and p is not front[0]]
+    picks = []
+    for p in [front[0], *between[len(between) // 2:][:1], best]:
+        if all(p is not q for q in picks):
+            picks.append(p)
+    labels = (["cheapest", "middle", "accurate"] if len(picks) == 3
+              else ["cheapest", "accurate"] if len(picks) == 2 else ["only"])
+    views = max(p.views for p in members)
+    wide = (f"; with {views} views per configuration the intervals keep most of them on it, "
+            "more views separate them" if views <= 2 and 2 * len(front) > len(members) else "")
+    out = [f"  the front ({len(front)} of {len(members)} configurations; {panel}{wide}):"]
     for label, p in zip(labels, picks):
         tie = " (tied within the intervals)" if p.tied_with else ""
         out.append(f"    {label:8s} {p.method} {knobs_text(p)}: {p.error:.1f} dB"
@@ -126,8 +144,8 @@ def answer(*, analysis_path: Path, advice_path: Path, results_path: Path | None 
     renderer = next((r.renderer for r in rows if r.renderer), "")
     lines = [f"Answer for {scene} ({analysis['variant']}) under {light}, {profile} profile:",
              f"  the scene needs {requirements(analysis)}."]
-    chosen = _config_point(points, advice["method"], advice.get("config") or {})
     psnr = (advice.get("metrics") or {}).get("psnr_masked")
+    chosen = _config_point(points, advice["method"], advice.get("config") or {}, psnr=psnr)
     use = (f"  use {advice['method']} {_knobs(advice.get('config') or {}, _searched(advice))}: "
            f"{psnr:.1f} dB masked PSNR{_interval(chosen)}" if psnr is not None else
            f"  use {advice['method']}")

@@ -322,7 +322,13 @@ def summary_text(result: ParetoResult) -> str:
                    key=lambda p: (p.panel, p.cost))
     lines = [f"pareto {result.scene}/{result.light}: {result.error} vs {result.cost} "
              f"({result.profile}), {len(result.points)} configurations, {len(front)} on the front"]
+    panel = None
     for p in front:
+        if p.panel != panel:  # one front per panel: one reference, one view set
+            panel = p.panel
+            members = sum(q.panel == panel for q in result.points)
+            on = sum(q.panel == panel for q in front)
+            lines.append(f" panel {panel}: {on} of {members} on its front")
         lines.append(f"  {p.variant:8s} {p.method:18s} {knobs_text(p):40s} {result.error}="
                      f"{_fmt(p.error)} [{_interval(p)}]{' (clipped)' if p.clipped else ''}  "
                      f"{result.cost}={_fmt(p.cost)}  {p.light_class}{'  tie' if p.tied_with else ''}")

@@ -274,6 +274,7 @@ PLANTS_TRAINING = {"samples": 100_000, "rays_per_point": 128, "heldout_vertices"
                    "object_balance": 0.5, "sh_bands": 4, "layers": 4}
 
 
+@pytest.mark.slow  # four trainings (~45 s); make test keeps the learnt smoke run and its regression gate
 def test_wider_networks_and_positional_encoding_lower_the_heldout_error_on_plants():
     # The thesis's two learning claims on held-out transfer (surface points never trained on):
     # k = 128 beats k = 64 (table 4.1) and 6 encoding frequencies beat raw (p, n) (fig. 4.13).

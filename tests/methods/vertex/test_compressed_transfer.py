@@ -144,7 +144,9 @@ def test_compress_on_a_method_without_stored_transfer_is_refused():
 
 @pytest.mark.parametrize("method, form", [
     ("vertex", {"compress": "cpca", "clusters": 16, "pca_vectors": 4}),
-    ("sloan-matrix", {"compress": "cpca", "clusters": 16, "pca_vectors": 4}),
+    # ~30 s; regress gates sloan-matrix:cpca in make test
+    pytest.param("sloan-matrix", {"compress": "cpca", "clusters": 16, "pca_vectors": 4},
+                 marks=pytest.mark.slow),
 ])
 def test_compressed_smoke_run_beats_the_trivial_images(method, form):
     from prtbench.bench.regress import case_job, gate

@@ -177,8 +177,10 @@ def test_smoke_run_through_the_runner_beats_the_trivial_images():
     assert not gate(job, summary.mean_metrics())
 
 
-@pytest.mark.parametrize("variant, light, floor, margin", [("diffuse", "sun", 30.0, 8.0),
-                                                           ("glossy", "sky", 30.0, 4.0)])
+@pytest.mark.parametrize("variant, light, floor, margin", [
+    ("diffuse", "sun", 30.0, 8.0),
+    pytest.param("glossy", "sky", 30.0, 4.0, marks=pytest.mark.slow),  # ~15 s; diffuse in make test
+])
 def test_converges_to_the_path_reference_well_above_the_trivial_images(variant, light, floor,
                                                                        margin):
     """Per pixel there is no tessellation to limit it: at cubemap 32 with every term the

@@ -305,6 +305,7 @@ def test_stability_derives_the_signal_dimension_from_the_method():
     assert got == {"clusters": scene.n_vertices, "pca_vectors": 6 * 16**2}
 
 
+@pytest.mark.slow  # the same case as regress's wavelet-vertex:cpca, gated in make test
 def test_compressed_smoke_run_beats_the_trivial_images():
     from prtbench.bench.regress import case_job, gate
     from prtbench.bench.submit import run

@@ -74,3 +74,15 @@ def test_rendering_never_imports_the_path_tracer(warm, tmp_path):
                           text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mitsuba" not in done.stderr.lower(), done.stderr[-2000:]
+
+
+def test_baked_lights_make_the_fixed_light_class():
+    # An engine's lightmap and a probe volume in light_mode=fixed carry one baked light: on a
+    # front they are `fixed`, never beside the relightable methods unmarked.
+    lightmap, probes = METHODS.get("lightmap"), METHODS.get("probe-volume")
+    assert lightmap.light_class_of(lightmap.Config()) == "fixed"
+    assert probes.light_class_of(probes.Config(light_mode="fixed")) == "fixed"
+    assert probes.light_class_of(probes.Config()) == "relight"
+    texture = METHODS.get("texture-tpfl")
+    assert texture.light_class_of(texture.Config(bounces=1)) == "fixed"
+    assert texture.light_class_of(texture.Config(bounces=0)) == "relight"

@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import psutil
 import pytest
 
 from prtbench.cli import COMMANDS, main
@@ -198,6 +199,14 @@ def _sweep(cache: Path, results: Path) -> list[str]:
             "--results", str(results), "--quiet"]
 
 
+def _is_worker(process: psutil.Process) -> bool:
+    """A spawned Dask worker (not multiprocessing's resource tracker), gone or not."""
+    try:
+        return any("spawn_main" in part for part in process.cmdline())
+    except psutil.Error:
+        return False
+
+
 @pytest.mark.parametrize("target", ["group", "process"])
 def test_sigint_to_a_running_sweep_is_one_line_and_resumes(tmp_path, target):
     """Ctrl-C signals the terminal's whole process group (the Dask workers too); ``kill -INT``
@@ -208,7 +217,14 @@ def test_sigint_to_a_running_sweep_is_one_line_and_resumes(tmp_path, target):
                              stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 240
-        # A cell is running: a worker holds a cache entry's lock (transfer, artifact, reference).
+        client = psutil.Process(sweep.pid)
+        # The Dask workers are up (the client ignores SIGINT while it starts them, which under
+        # load takes seconds, and may lock a cache entry of its own before that) ...
+        while sum(_is_worker(c) for c in client.children(recursive=True)) < 2:
+            assert sweep.poll() is None and time.monotonic() < deadline, sweep.communicate()
+            time.sleep(0.02)
+        # ... and a cell is running: a worker holds a cache entry's lock (transfer, artifact,
+        # reference).
         while not any((cache / ".locks").glob("*.lock")):
             assert sweep.poll() is None and time.monotonic() < deadline, sweep.communicate()
             time.sleep(0.02)

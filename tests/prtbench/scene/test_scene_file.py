@@ -456,6 +456,7 @@ def _sphere_over_ground(path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow  # repeats test_canonical_frame's and the glb-plants runs of vertex on a glTF file
 def test_vertex_prt_on_a_gltf_file_beats_the_trivial_images(tmp_path):
     # End to end through the runner (quick profile, path reference): ~28 dB masked PSNR
     # measured; the gate is the flat, half-bright and unshadowed images of the same reference.

@@ -54,6 +54,7 @@ def test_file_scene_cases_transform_the_file_and_run_ground_cases_on_the_built_i
                                          scene_file=str(path))] == ["moderate"]
 
 
+@pytest.mark.slow  # a stability matrix on a file scene; make test keeps file scenes' runs and the smoke matrix
 def test_stability_on_an_obj_file_classifies_its_cases(tmp_path):
     path = _sphere_file(tmp_path, ".obj")
     results, reports, out_json = tmp_path / "r.sqlite", tmp_path / "reports", tmp_path / "s.json"

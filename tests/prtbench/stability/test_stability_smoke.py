@@ -9,6 +9,10 @@ wavelet lighting term, CPCA with one cluster per vertex and with no PCA vectors,
 a solid block), plus the SH core's rows. Every case must be
 ``ok``, ``degraded`` or ``refused``; the moderate cases ``ok``; and the report must be written
 from the stored rows.
+
+``make test`` runs the cases every method must survive whatever its knobs (black and 10⁶
+lights, the scene at 10⁴ and 10⁻⁴) on both cores, one method per test; the knob and method
+edges (``SMOKE_EDGE_CASES``, about four minutes more here) run in ``make test-slow``.
 """
 
 from __future__ import annotations
@@ -20,10 +24,14 @@ from prtbench.stability.matrix import CORE, load_rows, run_matrix
 from prtbench.stability.report import write_reports
 
 TRAINED = ("learnt", "learnt-sdf", "neural-wavelet")
-SMOKE_CASES = ("sh_bands=1", "storage=float16", "precision=float16", "ridge=0", "light=black",
-               "light=huge-constant", "scale=1e+04", "scale=1e-04", "shininess=1e+04",
-               "light_terms=1", "compress=cpca clusters=signals", "compress=cpca pca_vectors=0",
-               "geometry=solid-block")
+#: What every method must survive whatever its knobs: in ``make test``.
+SMOKE_CORE_CASES = ("light=black", "light=huge-constant", "scale=1e+04", "scale=1e-04")
+#: The knob and method edges that are cheap at smoke: ``make test-slow``.
+SMOKE_EDGE_CASES = ("sh_bands=1", "storage=float16", "precision=float16", "ridge=0",
+                    "shininess=1e+04", "light_terms=1", "compress=cpca clusters=signals",
+                    "compress=cpca pca_vectors=0", "geometry=solid-block")
+SMOKE_CASES = SMOKE_CORE_CASES + SMOKE_EDGE_CASES
+MEASURED = [m for m in METHODS.names() if m not in TRAINED]
 
 
 def _same_picture(row) -> bool:
@@ -33,45 +41,47 @@ def _same_picture(row) -> bool:
     return psnr > 30.0 if psnr is not None else row["flip_vs_moderate"] == 0.0
 
 
-@pytest.fixture(scope="module")
-def smoke_rows(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("stability")
-    methods = [m for m in METHODS.names() if m not in TRAINED] + [CORE]
+def _matrix(folder, methods, cases):
     results = folder / "results.sqlite"
-    run_id = run_matrix(methods, profile="smoke", results_path=results, cases=SMOKE_CASES,
-                        echo=False)
-    return load_rows(run_id, results_path=results), folder
+    run_id = run_matrix(methods, profile="smoke", results_path=results, cases=cases, echo=False)
+    return load_rows(run_id, results_path=results)
 
 
-def test_no_smoke_case_fails(smoke_rows):
-    rows, _ = smoke_rows
+@pytest.mark.parametrize("method", MEASURED)
+def test_no_core_case_fails_and_scaled_scenes_render_the_moderate_picture(method,
+                                                                          tmp_path_factory):
+    # One method per test, so pytest-xdist spreads the matrix over both cores.
+    rows = _matrix(tmp_path_factory.mktemp("stability-" + method), [method], SMOKE_CORE_CASES)
+    mine = {r["case"]: r for r in rows}
+    failed = [f"{case}: {r['reason']}" for case, r in mine.items() if r["outcome"] == "failed"]
+    assert not failed, "\n".join(failed)
+    assert mine["moderate"]["outcome"] == "ok", mine["moderate"]["reason"]
+    # Finite, measured and stored: a real PSNR, the artifact inspected.
+    assert 10.0 < mine["moderate"]["psnr_masked"] < 60.0
+    assert mine["moderate"]["artifact_values"] > 0 and mine["moderate"]["precompute_s"] >= 0
+    assert mine["light=black"]["outcome"] == "ok"  # black in, black out
+    # Scale invariance (the canonical frame): both scenes render the moderate picture.
+    for scaled in ("scale=1e+04", "scale=1e-04"):
+        assert mine[scaled]["outcome"] == "ok", (scaled, mine[scaled]["reason"])
+        assert _same_picture(mine[scaled]), scaled
+
+
+@pytest.mark.slow
+def test_no_smoke_edge_case_fails(tmp_path_factory):
+    rows = _matrix(tmp_path_factory.mktemp("stability-edges"), MEASURED + [CORE], SMOKE_CASES)
     failed = [f"{r['method']} {r['case']}: {r['reason']}" for r in rows if r["outcome"] == "failed"]
     assert not failed, "\n".join(failed)
-
-
-def test_every_method_was_measured_and_its_moderate_case_is_ok(smoke_rows):
-    rows, _ = smoke_rows
-    for method in (m for m in METHODS.names() if m not in TRAINED):
-        mine = {r["case"]: r for r in rows if r["method"] == method}
-        assert mine["moderate"]["outcome"] == "ok", mine["moderate"]["reason"]
-        # Finite, measured and stored: a real PSNR, the artifact inspected.
-        assert 10.0 < mine["moderate"]["psnr_masked"] < 60.0
-        assert mine["moderate"]["artifact_values"] > 0 and mine["moderate"]["precompute_s"] >= 0
-        assert {"light=black", "scale=1e+04", "scale=1e-04"} <= set(mine)
-        assert mine["light=black"]["outcome"] == "ok"  # black in, black out
-        # Scale invariance (the canonical frame): both scenes render the moderate picture.
-        for scaled in ("scale=1e+04", "scale=1e-04"):
-            assert mine[scaled]["outcome"] == "ok", (method, scaled, mine[scaled]["reason"])
-            assert _same_picture(mine[scaled]), (method, scaled)
     core = [r for r in rows if r["method"] == CORE]
     assert any(r["outcome"] == "refused" for r in core)  # s = 1e5 past the lobe's range
     assert all(r["outcome"] != "failed" for r in core)
 
 
-def test_report_is_written_from_the_stored_rows(smoke_rows):
-    rows, folder = smoke_rows
-    md, csv_path = write_reports(rows, folder / "reports")
+def test_report_is_written_from_the_stored_rows(tmp_path):
+    # Two methods and the SH core's rows are enough for the report's shape.
+    rows = _matrix(tmp_path, ["vertex", "irradiance-volume", CORE], SMOKE_CORE_CASES)
+    assert all(r["outcome"] != "failed" for r in rows if r["method"] == CORE)
+    md, csv_path = write_reports(rows, tmp_path / "reports")
     text = md.read_text()
-    for method in (m for m in METHODS.names() if m not in TRAINED):
+    for method in ("vertex", "irradiance-volume"):
         assert f"\n- {method}: ok in " in text
     assert len(csv_path.read_text().splitlines()) == len(rows) + 1
