@@ -42,7 +42,7 @@ from prtbench.api.config import knob, seed_knob
 from prtbench.api.errors import InvalidInputError
 from prtbench.api.method import Artifact, Method, register_method
 from prtbench.render import gl, ops
-from prtbench.render.raster import RasterRenderer, clip_planes
+from prtbench.render.raster import RasterRenderer, clip_planes, draw_after_depth_prepass
 from prtbench.transport.parallel import map_chunks, parallel_chunks
 from prtbench.transport.ray_pattern import ShRotation, fibonacci_square
 from prtbench.transport.raytrace import Tracer
@@ -358,20 +358,7 @@ class IrradianceVolumeRenderer(RasterRenderer):
         self.program["clip_from_world"].write(clip_from_world)
         self.depth_program["clip_from_world"].write(clip_from_world)
         self._bind(view, light)
-        fbo, ctx = self.target.fbo, self.ctx
-        self.target.use()
-        self.target.clear()
-        ctx.enable(gl.moderngl.DEPTH_TEST)
-        ctx.disable(gl.moderngl.CULL_FACE)  # back faces occlude, and are shaded black
-        ctx.depth_func = "<"
-        fbo.color_mask = (False, False, False, False)
-        self.depth_vao.render()
-        fbo.color_mask = (True, True, True, True)
-        fbo.depth_mask = False
-        ctx.depth_func = "<="
-        self.vao.render()
-        fbo.depth_mask = True
-        ctx.depth_func = "<"
+        draw_after_depth_prepass(self.ctx, self.target, self.depth_vao, self.vao)
 
     def memory_bytes(self) -> int:
         return int(self._resident_bytes)

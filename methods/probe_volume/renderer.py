@@ -23,10 +23,15 @@ from methods.probe_volume.encoding import (
     layout,
 )
 from prtbench.api.errors import InvalidInputError
-from prtbench.api.method import FrameTimes, Renderer
+from prtbench.api.method import Renderer
 from prtbench.render import gl
 from prtbench.render.prt_shading import TripleProductBuffers
-from prtbench.render.raster import clip_planes, kd_per_vertex
+from prtbench.render.raster import (
+    TargetFrames,
+    clip_planes,
+    draw_after_depth_prepass,
+    kd_per_vertex,
+)
 from prtbench.transport.sh import clamped_cosine_zonal
 
 #: Visibility test → the TEST define of probe_volume.frag.
@@ -42,7 +47,7 @@ def _volume_texture(ctx, shape_xyz, components: int, data: np.ndarray, dtype: st
     return tex
 
 
-class ProbeVolumeRenderer(Renderer):
+class ProbeVolumeRenderer(TargetFrames, Renderer):
     """Draws the scene shaded from the probe pool (see the module docstring)."""
 
     def __init__(self, scene, artifact, config, *, width: int, height: int):
@@ -212,32 +217,7 @@ class ProbeVolumeRenderer(Renderer):
             self.program["light_sh"].write(coeffs.tobytes())
             if self.triple is not None:
                 self.triple.bind_gamma()
-        fbo, ctx = self.target.fbo, self.ctx
-        self.target.use()
-        self.target.clear()
-        ctx.enable(gl.moderngl.DEPTH_TEST)
-        ctx.disable(gl.moderngl.CULL_FACE)  # back faces occlude, and are shaded black
-        ctx.depth_func = "<"
-        fbo.color_mask = (False, False, False, False)
-        self.depth_vao.render()
-        fbo.color_mask = (True, True, True, True)
-        fbo.depth_mask = False
-        ctx.depth_func = "<="
-        self.vao.render()
-        fbo.depth_mask = True
-        ctx.depth_func = "<"
-
-    def render(self, view, light) -> np.ndarray:
-        self._check_light(light)
-        self._draw(view, light)
-        return np.ascontiguousarray(self.target.read()[..., :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        self._check_light(light)
-        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
-                                       frames=frames)
-        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
-                          self.renderer_string, times.source)
+        draw_after_depth_prepass(self.ctx, self.target, self.depth_vao, self.vao)
 
     def memory_breakdown(self) -> dict[str, int]:
         """The pool, validity, brick index, depth moments and Γ list, by name; then the mesh

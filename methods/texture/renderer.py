@@ -18,14 +18,14 @@ from methods.common.atlas.texels import layer_count, rgba_layers
 from methods.texture import SHADER_DIR
 from methods.texture.compressed import CompressedTexels
 from prtbench.api.errors import InvalidInputError
-from prtbench.api.method import Artifact, FrameTimes, Renderer
+from prtbench.api.method import Artifact, Renderer
 from prtbench.render import gl
 from prtbench.render import prt_shading as _triple
-from prtbench.render.raster import clip_planes
+from prtbench.render.raster import TargetFrames, clip_planes
 from prtbench.transport.compress import knobs as compress_knobs
 
 
-class TextureRenderer(Renderer):
+class TextureRenderer(TargetFrames, Renderer):
     """Draws the atlas mesh: depth-only pre-pass, then shading with depth test LEQUAL.
 
     Parameters
@@ -211,18 +211,6 @@ class TextureRenderer(Renderer):
         self.vao.render()
         fbo.depth_mask = True
         ctx.depth_func = "<"
-
-    def render(self, view, light) -> np.ndarray:
-        self._check_light(light)
-        self._draw(view, light)
-        return np.ascontiguousarray(self.target.read()[..., :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        self._check_light(light)
-        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
-                                       frames=frames)
-        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
-                          self.renderer_string, times.source)
 
     def memory_bytes(self) -> int:
         """Transfer texture arrays (all T_0 and T_b layers, RGBA, at the stored precision) plus

@@ -33,7 +33,50 @@ def clip_planes(scene, view) -> tuple[float, float]:
     return near, far
 
 
-class RasterRenderer(Renderer):
+def draw_after_depth_prepass(ctx, target, depth_vao, vao) -> None:
+    """Clear ``target``, write ``depth_vao``'s depth only, then draw ``vao`` with an early depth
+    test (``<=``) and no depth writes, so each pixel's visible fragment is shaded once. Back
+    faces are not culled: they occlude and are shaded black, as in the reference."""
+    fbo = target.fbo
+    target.use()
+    fbo.color_mask = (True, True, True, True)
+    fbo.depth_mask = True
+    target.clear()
+    ctx.enable(gl.moderngl.DEPTH_TEST)
+    ctx.disable(gl.moderngl.CULL_FACE)
+    ctx.depth_func = "<"
+    fbo.color_mask = (False, False, False, False)
+    depth_vao.render()
+    fbo.color_mask = (True, True, True, True)
+    fbo.depth_mask = False
+    ctx.depth_func = "<="
+    vao.render()
+    fbo.depth_mask = True
+    ctx.depth_func = "<"
+
+
+class TargetFrames:
+    """``render`` and ``frame_time`` of a renderer that draws a frame with ``_draw(view, light)``
+    into ``self.target`` (timed by ``self.timer``), after ``_check_light`` refused what it
+    cannot render (the default accepts every light)."""
+
+    def _check_light(self, light) -> None:
+        """Raise for a light this renderer cannot render (e.g. not the baked one)."""
+
+    def render(self, view, light) -> np.ndarray:
+        self._check_light(light)
+        self._draw(view, light)
+        return np.ascontiguousarray(self.target.read()[..., :3])
+
+    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
+        self._check_light(light)
+        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
+                                       frames=frames)
+        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
+                          self.renderer_string, times.source)
+
+
+class RasterRenderer(TargetFrames, Renderer):
     """Draws the merged scene mesh with one program into a float32 target.
 
     Subclasses bind their data in :meth:`_bind` (called before each draw), may add vertex
@@ -72,15 +115,6 @@ class RasterRenderer(Renderer):
         self.ctx.enable(gl.moderngl.DEPTH_TEST)
         self.ctx.disable(gl.moderngl.CULL_FACE)  # back faces are shaded black, as in the reference
         self.vao.render()
-
-    def render(self, view, light) -> np.ndarray:
-        self._draw(view, light)
-        return np.ascontiguousarray(self.target.read()[..., :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup, frames=frames)
-        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames, self.renderer_string,
-                          times.source)
 
     def release(self) -> None:
         buffers = (getattr(self.vao, "extra", None) or {}).get("buffers", [])

@@ -40,6 +40,7 @@ def test_quick_cells_are_the_table_cases_at_equal_memory():
     assert {c.light for c in cells} == {"sun"} and all(c.overrides["sh_bands"] == 5 for c in cells)
 
 
+@pytest.mark.slow  # ~11 s; test_table_cpca keeps the CPCA reproduction path in make test
 def test_figure_writes_panels_and_caption_from_stored_rows(tmp_path, monkeypatch):
     from prtbench.io import imageio
     from prtbench.store.results import load

@@ -24,9 +24,9 @@ from methods.common.atlas.atlas import AtlasMesh
 from methods.common.atlas.shading import ShadingInputs, normal_map_texture
 from methods.common.residency import named_breakdown
 from prtbench.api.errors import InvalidInputError
-from prtbench.api.method import FrameTimes, Renderer
+from prtbench.api.method import Renderer
 from prtbench.render import gl
-from prtbench.render.raster import clip_planes
+from prtbench.render.raster import TargetFrames, clip_planes, draw_after_depth_prepass
 
 #: moderngl texture dtype of each stored numpy dtype: float32, float16 and 8-bit unorm.
 GL_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2", np.dtype(np.uint8): "f1"}
@@ -35,7 +35,7 @@ GL_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2", np.dtype(np
 NORMAL_MAP_UNIT = 7
 
 
-class AtlasRenderer(Renderer):
+class AtlasRenderer(TargetFrames, Renderer):
     """Draws the atlas mesh: depth-only pre-pass, then shading with depth test LEQUAL.
 
     Parameters
@@ -153,36 +153,7 @@ class AtlasRenderer(Renderer):
             self.normal_map.use(location=NORMAL_MAP_UNIT)
             self.program["normal_map"].value = NORMAL_MAP_UNIT
         self._bind(view, light)
-        fbo, ctx = self.target.fbo, self.ctx
-        self.target.use()
-        fbo.color_mask = (True, True, True, True)
-        fbo.depth_mask = True
-        self.target.clear()
-        ctx.enable(gl.moderngl.DEPTH_TEST)
-        ctx.disable(gl.moderngl.CULL_FACE)  # back faces occlude, and are shaded black
-        # Pass 1: depth only, so pass 2 shades each pixel's visible fragment once.
-        ctx.depth_func = "<"
-        fbo.color_mask = (False, False, False, False)
-        self.depth_vao.render()
-        # Pass 2: shading, early depth test against the pre-pass depth, no depth writes.
-        fbo.color_mask = (True, True, True, True)
-        fbo.depth_mask = False
-        ctx.depth_func = "<="
-        self.vao.render()
-        fbo.depth_mask = True
-        ctx.depth_func = "<"
-
-    def render(self, view, light) -> np.ndarray:
-        self._check_light(light)
-        self._draw(view, light)
-        return np.ascontiguousarray(self.target.read()[..., :3])
-
-    def frame_time(self, view, light, *, warmup: int, frames: int) -> FrameTimes:
-        self._check_light(light)
-        times = self.timer.time_frames(lambda: self._draw(view, light), warmup=warmup,
-                                       frames=frames)
-        return FrameTimes(times.median_ms, times.p95_ms, times.mean_ms, frames,
-                          self.renderer_string, times.source)
+        draw_after_depth_prepass(self.ctx, self.target, self.depth_vao, self.vao)
 
     def memory_breakdown(self) -> dict[str, int]:
         """The textures (and buffers) a subclass uploaded, by the name it gave them, then the

@@ -498,6 +498,7 @@ def test_indirect_error_falls_with_basis_count_towards_the_projection():
     assert pred[2] < 1.5 * proj[2] and pred[3] < 1.5 * proj[3]
 
 
+@pytest.mark.slow  # ~18 s of fitting; make test keeps the runner smoke run and regress
 def test_small_dataset_error_falls_and_stays_near_the_projection():
     # Belcour et al.'s Fig. 14 claim at test size: on held-out rotations of the sky, the
     # prediction from 64 measurement points falls with every added basis element up to 16 and

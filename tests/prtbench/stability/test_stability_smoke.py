@@ -11,8 +11,8 @@ a solid block), plus the SH core's rows. Every case must be
 from the stored rows.
 
 ``make test`` runs the cases every method must survive whatever its knobs (black and 10⁶
-lights, the scene at 10⁴ and 10⁻⁴) on both cores, one method per test; the knob and method
-edges (``SMOKE_EDGE_CASES``, about four minutes more here) run in ``make test-slow``.
+lights, the scene at 10⁻⁴) on both cores, one method per test; the scene at 10⁴ and the knob
+and method edges (``SMOKE_EDGE_CASES``, about five minutes more here) run in ``make test-slow``.
 """
 
 from __future__ import annotations
@@ -24,10 +24,11 @@ from prtbench.stability.matrix import CORE, load_rows, run_matrix
 from prtbench.stability.report import write_reports
 
 TRAINED = ("learnt", "learnt-sdf", "neural-wavelet")
-#: What every method must survive whatever its knobs: in ``make test``.
-SMOKE_CORE_CASES = ("light=black", "light=huge-constant", "scale=1e+04", "scale=1e-04")
+#: What every method must survive whatever its knobs: in ``make test``. (A scaled scene is a
+#: new precompute and reference, the dearest case here: the larger scale runs in test-slow.)
+SMOKE_CORE_CASES = ("light=black", "light=huge-constant", "scale=1e-04")
 #: The knob and method edges that are cheap at smoke: ``make test-slow``.
-SMOKE_EDGE_CASES = ("sh_bands=1", "storage=float16", "precision=float16", "ridge=0",
+SMOKE_EDGE_CASES = ("scale=1e+04", "sh_bands=1", "storage=float16", "precision=float16", "ridge=0",
                     "shininess=1e+04", "light_terms=1", "compress=cpca clusters=signals",
                     "compress=cpca pca_vectors=0", "geometry=solid-block")
 SMOKE_CASES = SMOKE_CORE_CASES + SMOKE_EDGE_CASES
@@ -61,9 +62,8 @@ def test_no_core_case_fails_and_scaled_scenes_render_the_moderate_picture(method
     assert mine["moderate"]["artifact_values"] > 0 and mine["moderate"]["precompute_s"] >= 0
     assert mine["light=black"]["outcome"] == "ok"  # black in, black out
     # Scale invariance (the canonical frame): both scenes render the moderate picture.
-    for scaled in ("scale=1e+04", "scale=1e-04"):
-        assert mine[scaled]["outcome"] == "ok", (scaled, mine[scaled]["reason"])
-        assert _same_picture(mine[scaled]), scaled
+    assert mine["scale=1e-04"]["outcome"] == "ok", mine["scale=1e-04"]["reason"]
+    assert _same_picture(mine["scale=1e-04"])
 
 
 @pytest.mark.slow
@@ -71,17 +71,19 @@ def test_no_smoke_edge_case_fails(tmp_path_factory):
     rows = _matrix(tmp_path_factory.mktemp("stability-edges"), MEASURED + [CORE], SMOKE_CASES)
     failed = [f"{r['method']} {r['case']}: {r['reason']}" for r in rows if r["outcome"] == "failed"]
     assert not failed, "\n".join(failed)
+    for r in rows:  # both scales render the moderate picture (the canonical frame)
+        if r["case"] in ("scale=1e+04", "scale=1e-04"):
+            assert r["outcome"] == "ok" and _same_picture(r), (r["method"], r["case"], r["reason"])
     core = [r for r in rows if r["method"] == CORE]
     assert any(r["outcome"] == "refused" for r in core)  # s = 1e5 past the lobe's range
     assert all(r["outcome"] != "failed" for r in core)
 
 
 def test_report_is_written_from_the_stored_rows(tmp_path):
-    # Two methods and the SH core's rows are enough for the report's shape.
-    rows = _matrix(tmp_path, ["vertex", "irradiance-volume", CORE], SMOKE_CORE_CASES)
+    # One method and the SH core's rows are enough for the report's shape.
+    rows = _matrix(tmp_path, ["vertex", CORE], SMOKE_CORE_CASES)
     assert all(r["outcome"] != "failed" for r in rows if r["method"] == CORE)
     md, csv_path = write_reports(rows, tmp_path / "reports")
     text = md.read_text()
-    for method in ("vertex", "irradiance-volume"):
-        assert f"\n- {method}: ok in " in text
+    assert "\n- vertex: ok in " in text
     assert len(csv_path.read_text().splitlines()) == len(rows) + 1
