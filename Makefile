@@ -29,8 +29,6 @@ REGRESS_FLAGS ?=
 test: setup  ## unit, analytic, convergence and CLI tests, then golden-metric regression
 	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal
 	$(PRTBENCH) regress $(REGRESS_FLAGS)
-	@if command -v chromium >/dev/null; then $(MAKE) --no-print-directory test-browser; \
-	else echo "test-browser skipped: chromium is not installed (make setup installs it as root)"; fi
 
 test-browser: setup  ## the comparison site in headless Chromium (screenshots in reports/site/screenshots)
 	$(PY) -m pytest -q -m browser tests/prtbench/site/test_site_browser.py

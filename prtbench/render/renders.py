@@ -57,6 +57,9 @@ class CachedRender:
     path: Path
 
 
+#: The largest finite half float.
+HALF_MAX = 65504.0
+
 def entry_path(run_id: str, view: int, *, root: Path | None = None) -> Path:
     """Where the render of ``view`` of run ``run_id`` lives (it may not exist)."""
     return (root or cache_root()) / _KIND / run_id / f"view{int(view):02d}.exr"
@@ -94,10 +97,14 @@ def store(run_id: str, view: int, image: np.ndarray, *, exposure: float,
 
 
 def _write(path: Path, image: np.ndarray, metadata: dict[str, str]) -> None:
-    half = np.asarray(image, np.float32).astype(np.float16)
+    image = np.asarray(image, np.float32)
+    # Half floats where they hold the image; a brighter one (a 10^6 light) stays float32
+    # rather than turning into infinities.
+    fits = not np.isfinite(image).all() or float(np.abs(image).max(initial=0.0)) <= HALF_MAX
+    stored = image.astype(np.float16) if fits else image
     metadata = dict(metadata)
-    metadata[CHECKSUM_KEY] = reference_checksum(half.astype(np.float32), metadata)
-    write_exr(path, half, metadata=metadata, half=True)
+    metadata[CHECKSUM_KEY] = reference_checksum(stored.astype(np.float32), metadata)
+    write_exr(path, stored, metadata=metadata, half=fits)
 
 
 def _read_checked(path: Path) -> tuple[np.ndarray, dict[str, str]] | None:

@@ -360,6 +360,7 @@ def test_an_edited_scene_file_makes_its_baseline_stale(fake, tmp_path, capsys):
     assert "crate-vertex: FAIL baseline recorded on case" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # the CI guide's cases-file test runs a scene-file case in make test
 def test_a_scene_file_case_runs_and_writes_its_own_baseline(tmp_path, monkeypatch, capsys):
     """The real thing: a .glb exported here, rendered, referenced, gated and compared."""
     (tmp_path / "scenes").mkdir()

@@ -207,7 +207,9 @@ def _is_worker(process: psutil.Process) -> bool:
         return False
 
 
-@pytest.mark.parametrize("target", ["group", pytest.param("process", marks=pytest.mark.slow)])
+# ~30 s with its resume; make test keeps kill -9 mid-sweep and its resume (test_sweep.py)
+@pytest.mark.slow
+@pytest.mark.parametrize("target", ["group", "process"])
 def test_sigint_to_a_running_sweep_is_one_line_and_resumes(tmp_path, target):
     """Ctrl-C signals the terminal's whole process group (the Dask workers too); ``kill -INT``
     only the client. Either way: exit 130, one line, and a rerun measures only the rest."""

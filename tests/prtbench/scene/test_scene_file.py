@@ -602,7 +602,11 @@ def _builtin_and_imported_psnr(method: str, name: str, path: Path, *, builtin, l
     return psnr[0], psnr[1]
 
 
-@pytest.mark.parametrize("method", ["vertex", "texture-tpfl"])
+@pytest.mark.parametrize("method", [
+    "vertex",
+    # ~10 s; test_canonical_frame runs texture-tpfl on glTF files in make test
+    pytest.param("texture-tpfl", marks=pytest.mark.slow),
+])
 def test_plants_exported_to_glb_measures_as_the_builtin_plants(tmp_path, method):
     # plants (diffuse, procedural: no fetched asset, ~5 s) written to GLB by trimesh (positions
     # and normals as stored, kd through glTF's 8-bit factors), imported, and run with vertex and
