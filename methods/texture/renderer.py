@@ -13,6 +13,7 @@ import numpy as np
 
 from methods.common.atlas import SHADER_DIR as ATLAS_SHADER_DIR
 from methods.common.atlas.atlas import AtlasMesh
+from methods.common.atlas.raster import upload_atlas_mesh
 from methods.common.atlas.shading import ShadingInputs, normal_map_texture
 from methods.common.atlas.texels import layer_count, rgba_layers
 from methods.texture import SHADER_DIR
@@ -90,8 +91,12 @@ class TextureRenderer(TargetFrames, Renderer):
         if n_bounces:
             self.bounce_texture = self._texture_array(
                 rgba_layers(bounce.reshape(n_bounces * sets, res, res, -1)), filter_)
-        self.normal_map = normal_map_texture(ctx, ShadingInputs.from_scene(scene).normal_map)
-        self._upload_mesh(arrays)
+        shading = ShadingInputs.from_scene(scene)
+        self.normal_map = normal_map_texture(ctx, shading.normal_map)
+        atlas = AtlasMesh.from_arrays(arrays, resolution=int(self.meta["texture_resolution"]),
+                                      sets=int(self.meta["texture_sets"]))
+        self._mesh_buffers, (self.vao, self.depth_vao) = upload_atlas_mesh(
+            ctx, scene, atlas, shading, (self.program, self.depth_program))
         self.timer = gl.GpuTimer(ctx)
         self.target = gl.RenderTarget(ctx, self.width, self.height)
         # Γ list (TP) or the per-light matrix M (TPFL), uploaded exactly as the vertex methods do.
@@ -110,41 +115,6 @@ class TextureRenderer(TargetFrames, Renderer):
         self._resident.append(tex)
         self._texture_bytes += int(layers.nbytes)
         return tex
-
-    def _upload_mesh(self, arrays) -> None:
-        scene = self.scene
-        atlas = AtlasMesh.from_arrays(arrays, resolution=int(self.meta["texture_resolution"]),
-                                      sets=int(self.meta["texture_sets"]))
-        shading = ShadingInputs.from_scene(scene)
-        positions, normals, _, _ = scene.merged()
-        src = atlas.vertex_source
-        per_object = {
-            "in_kd": [o.material.kd for o in scene.objects],
-            "in_ks": [o.material.ks for o in scene.objects],
-            "in_shininess": [[o.material.shininess] for o in scene.objects],
-        }
-        object_of_vertex = np.repeat(np.arange(len(scene.objects)),
-                                     [o.mesh.n_vertices for o in scene.objects])[src]
-        attributes = {
-            "in_position": positions[src], "in_normal": normals[src], "in_atlas_uv": atlas.uvs,
-            "in_mesh_uv": shading.mesh_uvs[src], "in_tangent": shading.tangents[src],
-            "in_texture_set": atlas.texture_set.astype(np.float32)[:, None],
-            "in_normal_mapped": shading.normal_mapped[src][:, None],
-            **{name: np.asarray(v, np.float32)[object_of_vertex] for name, v in per_object.items()},
-        }
-        buffers = {name: self.ctx.buffer(np.ascontiguousarray(v, np.float32).tobytes())
-                   for name, v in attributes.items()}
-        self.index_buffer = self.ctx.buffer(np.ascontiguousarray(atlas.faces, np.uint32).tobytes())
-        self._mesh_buffers = [*buffers.values(), self.index_buffer]
-
-        def vao(program):
-            bindings = [(buf, f"{np.asarray(attributes[name]).reshape(len(src), -1).shape[1]}f", name)
-                        for name, buf in buffers.items() if name in program]
-            return self.ctx.vertex_array(program, bindings, index_buffer=self.index_buffer,
-                                         index_element_size=4)
-
-        self.vao = vao(self.program)
-        self.depth_vao = vao(self.depth_program)
 
     # -- per light --------------------------------------------------------------------------
     def _check_light(self, light) -> None:

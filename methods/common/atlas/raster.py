@@ -35,6 +35,48 @@ GL_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2", np.dtype(np
 NORMAL_MAP_UNIT = 7
 
 
+def upload_atlas_mesh(ctx, scene, atlas: AtlasMesh, shading: ShadingInputs,
+                      programs: Sequence[Any]) -> tuple[list, list]:
+    """The atlas mesh's vertex attributes (position, normal, atlas and mesh UVs, tangent,
+    texture set, normal-mapped flag, each object's kd / ks / shininess) and its indices as GL
+    buffers, and one vertex array per program binding the attributes it reads.
+
+    Returns
+    -------
+    (list of Buffer, list of VertexArray)
+        Every buffer made (the index buffer last), and the vertex arrays in ``programs`` order.
+    """
+    positions, normals, _, _ = scene.merged()
+    src = atlas.vertex_source
+    object_of_vertex = np.repeat(np.arange(len(scene.objects)),
+                                 [o.mesh.n_vertices for o in scene.objects])[src]
+    per_object = {
+        "in_kd": [o.material.kd for o in scene.objects],
+        "in_ks": [o.material.ks for o in scene.objects],
+        "in_shininess": [[o.material.shininess] for o in scene.objects],
+    }
+    attributes = {
+        "in_position": positions[src], "in_normal": normals[src], "in_atlas_uv": atlas.uvs,
+        "in_mesh_uv": shading.mesh_uvs[src], "in_tangent": shading.tangents[src],
+        "in_texture_set": atlas.texture_set.astype(np.float32)[:, None],
+        "in_normal_mapped": shading.normal_mapped[src][:, None],
+        **{name: np.asarray(v, np.float32)[object_of_vertex] for name, v in per_object.items()},
+    }
+    attributes = {name: np.asarray(v, np.float32).reshape(len(src), -1)
+                  for name, v in attributes.items()}
+    buffers = {name: ctx.buffer(np.ascontiguousarray(v).tobytes())
+               for name, v in attributes.items()}
+    index_buffer = ctx.buffer(np.ascontiguousarray(atlas.faces, np.uint32).tobytes())
+
+    def vao(program):
+        bindings = [(buf, f"{attributes[name].shape[1]}f", name)
+                    for name, buf in buffers.items() if name in program]
+        return ctx.vertex_array(program, bindings, index_buffer=index_buffer,
+                                index_element_size=4)
+
+    return [*buffers.values(), index_buffer], [vao(program) for program in programs]
+
+
 class AtlasRenderer(TargetFrames, Renderer):
     """Draws the atlas mesh: depth-only pre-pass, then shading with depth test LEQUAL.
 
@@ -101,43 +143,10 @@ class AtlasRenderer(TargetFrames, Renderer):
         self._parts[key] = self._parts.get(key, 0) + int(nbytes)
 
     def _upload_mesh(self, atlas: AtlasMesh, shading: ShadingInputs) -> None:
-        scene = self.scene
-        positions, normals, _, _ = scene.merged()
-        src = atlas.vertex_source
-        object_of_vertex = np.repeat(np.arange(len(scene.objects)),
-                                     [o.mesh.n_vertices for o in scene.objects])[src]
-        per_object = {
-            "in_kd": [o.material.kd for o in scene.objects],
-            "in_ks": [o.material.ks for o in scene.objects],
-            "in_shininess": [[o.material.shininess] for o in scene.objects],
-        }
-        attributes = {
-            "in_position": positions[src], "in_normal": normals[src], "in_atlas_uv": atlas.uvs,
-            "in_mesh_uv": shading.mesh_uvs[src], "in_tangent": shading.tangents[src],
-            "in_texture_set": atlas.texture_set.astype(np.float32)[:, None],
-            "in_normal_mapped": shading.normal_mapped[src][:, None],
-            **{name: np.asarray(v, np.float32)[object_of_vertex] for name, v in per_object.items()},
-        }
-        attributes = {name: np.asarray(v, np.float32).reshape(len(src), -1)
-                      for name, v in attributes.items()}
-        buffers = {name: self.ctx.buffer(np.ascontiguousarray(v).tobytes())
-                   for name, v in attributes.items()}
-        self.index_buffer = self.ctx.buffer(np.ascontiguousarray(atlas.faces, np.uint32).tobytes())
-        self._mesh_buffers = [*buffers.values(), self.index_buffer]
-
-        def vao(program):
-            bindings = [(buf, f"{attributes[name].shape[1]}f", name)
-                        for name, buf in buffers.items() if name in program]
-            return self.ctx.vertex_array(program, bindings, index_buffer=self.index_buffer,
-                                         index_element_size=4)
-
-        self.vao = vao(self.program)
-        self.depth_vao = vao(self.depth_program)
+        self._mesh_buffers, (self.vao, self.depth_vao) = upload_atlas_mesh(
+            self.ctx, self.scene, atlas, shading, (self.program, self.depth_program))
 
     # -- per frame --------------------------------------------------------------------------
-    def _check_light(self, light) -> None:
-        """Raise an InvalidInputError if this artifact cannot render ``light`` (a baked one)."""
-
     def _bind(self, view, light) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
 
