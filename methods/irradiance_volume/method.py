@@ -37,6 +37,7 @@ import numpy as np
 from tqdm import tqdm
 
 from methods.common.materials import check_diffuse_constant_kd
+from methods.common.sphere_rays import random_rotations, sphere_pattern
 from methods.irradiance_volume import SHADER_DIR
 from prtbench.api.config import knob, seed_knob
 from prtbench.api.errors import InvalidInputError
@@ -44,7 +45,7 @@ from prtbench.api.method import Artifact, Method, register_method
 from prtbench.render import gl, ops
 from prtbench.render.raster import RasterRenderer, clip_planes, draw_after_depth_prepass
 from prtbench.transport.parallel import map_chunks, parallel_chunks
-from prtbench.transport.ray_pattern import ShRotation, fibonacci_square
+from prtbench.transport.ray_pattern import ShRotation
 from prtbench.transport.raytrace import Tracer
 from prtbench.transport.sh import clamped_cosine_zonal, eval_sh, tpfl_matrix
 
@@ -105,30 +106,6 @@ def probe_grid(scene, *, resolution: int, padding: float) -> tuple[np.ndarray, n
     cell = (hi - lo) / (resolution - 1)
     idx = np.stack(np.meshgrid(*(np.arange(resolution),) * 3, indexing="ij"), axis=-1)
     return lo, cell, lo + idx.reshape(-1, 3) * cell
-
-
-def sphere_pattern(rays: int, rng: np.random.Generator) -> np.ndarray:
-    """``rays`` area-uniform stratified unit directions (M, 3): a shifted Fibonacci lattice."""
-
-    u = fibonacci_square(rays, shift=rng.random(2))
-    z = 1.0 - 2.0 * u[:, 0]
-    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
-    phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-def random_rotations(count: int, rng: np.random.Generator) -> np.ndarray:
-    """``count`` uniformly distributed rotation matrices (count, 3, 3).
-
-    Normalised 4D Gaussian vectors are uniform unit quaternions, hence uniform rotations.
-    """
-    q = rng.standard_normal((count, 4))
-    w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], axis=1)
 
 
 def probe_visibility(tracer, positions: np.ndarray, *, bands: int, rays_per_probe: int,
