@@ -20,7 +20,7 @@ from prtbench.api.config import format_bytes
 from prtbench.api.errors import InvalidInputError, PrtbenchError
 from prtbench.store.results import ResultsStore, default_path
 from prtbench.tradeoff.cost import OPS_WEIGHTS
-from prtbench.tradeoff.front import ERRORS, Point, collect_points, knobs_text, mark_fronts
+from prtbench.tradeoff.front import Point, collect_points, knobs_text, mark_fronts
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
@@ -101,8 +101,7 @@ def _front_lines(points: Sequence[Point]) -> list[str]:
         return [f"  (no configuration of panel {panel} has a finite cost)"]
     # The cheapest, the most accurate and one between them by cost: with few views the
     # intervals keep many points on the front, and the costliest of them need not be the best.
-    sign = 1.0 if ERRORS["psnr_masked"] else -1.0
-    best = max(front, key=lambda p: sign * p.error)
+    best = max(front, key=lambda p: p.error)  # masked PSNR: higher is better
     between = [p for p in front if p.cost < best.cost and p is not front[0]]
     picks = []
     for p in [front[0], *between[len(between) // 2:][:1], best]:
