@@ -139,6 +139,9 @@ class AoBentNormal(_AoBentBase):
 
     Config = AoBentNormalConfig
     storage = "per-vertex"
+    family = "AO + bent normal"
+    engine_baseline = True
+    verdict_grid = {}
     precompute_version = "1"
     #: Nothing trades accuracy for cost: 16 bytes and one L2 evaluation per vertex whatever the rays.
     main_knobs = ()
@@ -230,6 +233,9 @@ class AoBentNormalTexture(_AoBentBase):
 
     Config = AoBentNormalTextureConfig
     storage = "per-texel"
+    family = "AO + bent normal"
+    engine_baseline = True
+    verdict_grid = {"texture_resolution": "auto"}
     precompute_version = "1"
     main_knobs = ("texture_resolution",)
     profile_overrides = {

@@ -122,6 +122,8 @@ class DataDrivenPRT(Method):
 
     storage = "per-texel"
 
+    family = "data-driven PRT"
+
     Config = DataDrivenConfig
     precompute_version = "3"  # 3: one transfer matrix per colour channel (mono layout)
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).

@@ -172,6 +172,8 @@ class FactoredBrdf(Method):
 
     storage = "per-vertex"
 
+    family = "SH PRT"
+
     Config = FactoredBrdfConfig
     precompute_version = "3"  # 2: the s = 0 Phong lobe is a hemisphere about r; 3: one-thread SVD
     paper = ("Wang, Tran and Luebke 2004, All-Frequency Relighting of Non-Diffuse Objects using "

@@ -181,6 +181,12 @@ class IrradianceVolume(Method):
 
     storage = "per-probe"
 
+    family = "probe volume"
+
+    verdict_grid = {"resolution": [8, 16]}
+
+    engine_baseline = True
+
     Config = IrradianceVolumeConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).

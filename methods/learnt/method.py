@@ -42,6 +42,8 @@ class LearntTransfer(Method):
 
     storage = "network"
 
+    family = "learnt PRT"
+
     Config = LearntConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).

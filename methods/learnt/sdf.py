@@ -258,6 +258,8 @@ class LearntSdf(Method):
 
     storage = "network"
 
+    family = "learnt PRT"
+
     Config = LearntSdfConfig
     # The artifact holds a network fitted to SDF transfer, so it follows that code's version.
     precompute_version = f"1+sdf-transfer-{SDF_TRANSFER_VERSION}"

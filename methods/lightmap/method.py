@@ -95,6 +95,9 @@ class Lightmap(Method):
 
     Config = LightmapConfig
     storage = "per-texel"
+    family = "lightmap"
+    verdict_grid = {"texture_resolution": "auto"}
+    engine_baseline = True
     precompute_version = "2"  # 2: float16 lightmaps stored with a power-of-two scale
     main_knobs = ("texture_resolution",)
     paper = ("Directional lightmaps as engines ship them: SH L2 (Chen and Liu 2008, Lighting and "

@@ -209,6 +209,8 @@ class NeuralWavelet(Method):
 
     storage = "network"
 
+    family = "neural PRT"
+
     Config = NeuralWaveletConfig
     precompute_version = "1"
     views_in_key = True  # its training cameras are derived from the trajectory's views

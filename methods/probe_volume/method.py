@@ -130,6 +130,9 @@ class ProbeVolume(Method):
 
     Config = ProbeVolumeConfig
     storage = "per-probe"
+    family = "probe volume"
+    verdict_grid = {"light_mode": ["relight", "fixed"]}
+    engine_baseline = True
     precompute_version = "1"
     main_knobs = ("resolution",)
     paper = ("Unity adaptive probe volumes (Unity-Technologies/Graphics, ProbeVolume: bricks, "

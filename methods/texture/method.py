@@ -98,6 +98,8 @@ class TextureMethod(Method):
 
     storage = "per-texel"
 
+    family = "SH PRT"
+
     Config = TextureConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).
@@ -318,6 +320,8 @@ class TextureTPFL(TextureMethod):
     """Transfer textures shaded per fragment with the fixed-light matrix (PRTT, TPFL)."""
 
     product = "tpfl"
+    # The atlas that packs the scene and twice it (prtbench verdict): two memory budgets.
+    verdict_grid = {"texture_resolution": "auto2"}
     paper = ("Sirikonda, KT and Narayanan 2022, PRTT (precomputed radiance transfer "
              "textures), Algorithms 1 and 2, TPFL shading")
     light_dependence = "fixed-light"

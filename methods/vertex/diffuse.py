@@ -58,6 +58,10 @@ class VertexPRT(Method):
 
     storage = "per-vertex"
 
+    family = "SH PRT"
+
+    verdict_grid = {"sh_bands": [3, 5]}
+
     Config = VertexConfig
     precompute_version = "1"
     #: Knobs along which accuracy and cost both grow (searched by ``prtbench advise``).

@@ -181,6 +181,8 @@ class _GlossyVertexMethod(Method):
 
     storage = "per-vertex"
 
+    family = "SH PRT"
+
     profile_overrides = _PROFILES
     #: As for ``vertex``: a subdivided ground under the sun, where shadows are what is measured.
     regression_case = {"variant": "glossy", "light": "sun",

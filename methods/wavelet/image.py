@@ -114,6 +114,8 @@ class WaveletImage(Method):
 
     storage = "per-pixel"
 
+    family = "wavelet PRT"
+
     Config = WaveletImageConfig
     precompute_version = "1"
     main_knobs = ("light_terms", "cubemap")

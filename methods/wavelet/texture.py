@@ -140,6 +140,8 @@ class WaveletTexture(Method):
 
     storage = "per-texel"
 
+    family = "wavelet PRT"
+
     Config = WaveletTextureConfig
     precompute_version = "1"
     main_knobs = ("light_terms", "texture_resolution")

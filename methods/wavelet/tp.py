@@ -139,6 +139,8 @@ class WaveletTP(Method):
 
     storage = "per-vertex"
 
+    family = "wavelet PRT"
+
     Config = WaveletTPConfig
     precompute_version = "2"  # 2: the s = 0 Phong lobe is a hemisphere about r
     main_knobs = ("light_terms", "cubemap")

@@ -91,6 +91,10 @@ class WaveletVertex(Method):
 
     storage = "per-vertex"
 
+    family = "wavelet PRT"
+
+    verdict_grid = {"light_terms": [64]}
+
     Config = WaveletVertexConfig
     precompute_version = "1"
     main_knobs = ("light_terms", "cubemap")

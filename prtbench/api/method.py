@@ -216,6 +216,18 @@ class Method(ABC):
     #: this (e.g. the stability matrix's large-mesh case) instead of listing method names.
     #: Every method must declare it (a test checks).
     storage: ClassVar[str] = ""
+    #: The family ``prtbench verdict`` compares at equal budgets (its best configuration
+    #: stands for the family): ``"SH PRT"``, ``"wavelet PRT"``, ``"probe volume"``, ... Every
+    #: method must declare it (a test checks).
+    family: ClassVar[str] = ""
+    #: True for what engines ship today (probe volumes, lightmaps, AO with bent normals): the
+    #: baselines a PRT method has to beat at the same bytes and work (``prtbench verdict``).
+    engine_baseline: ClassVar[bool] = False
+    #: The configurations ``prtbench verdict`` measures where the store lacks them (None: the
+    #: method is not in the verdict): knob -> values, ``{}`` for the profile's defaults. A
+    #: ``texture_resolution`` of ``"auto"`` is the smallest atlas that packs the scene,
+    #: ``"auto2"`` that and twice it (:func:`prtbench.tradeoff.verdict.auto_texture_resolutions`).
+    verdict_grid: ClassVar[Mapping[str, Any] | None] = None
     #: Knobs along which accuracy and cost both grow, in the order ``prtbench advise``
     #: searches them (e.g. ``("sh_bands",)``); none: the advisor measures the defaults only.
     main_knobs: ClassVar[tuple[str, ...]] = ()

@@ -34,6 +34,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "answer": ("answer", "what to use on a scene, in plain words, from the analysis, the "
                          "advice and the store"),
     "pareto": ("pareto", "Pareto fronts over (error, cost) from the results store"),
+    "verdict": ("verdict", "does a PRT method beat the engine baselines at equal memory and "
+                           "work? best per family per budget, measured where the store lacks it"),
     "report": ("report", "the static HTML comparison site, from the results store"),
     "table": ("table", "regenerate a paper table from our measurements"),
     "figure": ("figure", "regenerate a paper figure from our renders"),

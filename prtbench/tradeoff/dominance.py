@@ -53,31 +53,56 @@ def non_dominated(errors: Sequence[float], costs: Sequence[float], *,
     return out
 
 
-def better_beyond(a: Any, b: Any, *, higher_is_better: bool) -> bool:
-    """Whether ``a``'s error is better than ``b``'s beyond the intervals (docs/PROTOCOL.md).
+def paired_difference(a: Any, b: Any, *, higher_is_better: bool) -> tuple[float, float]:
+    """How much better ``a``'s error is than ``b``'s, with the half-width of its interval.
 
-    A paired comparison over the views both were measured on: the mean per-view difference
-    must exceed Student's t (n − 1 degrees of freedom) times its standard error plus the
-    reference-noise half-widths of both (``a``'s towards worse, ``b``'s towards better).
-    Points without shared views are compared by their whole intervals.
+    Paired over the views both were measured on: the mean per-view difference (positive when
+    ``a`` is better) and, as its half-width, Student's t (n − 1 degrees of freedom) times the
+    standard error of the differences plus the mean reference-noise half-widths of both, taken
+    in the direction of the difference (for ``a`` better: ``a``'s towards worse and ``b``'s
+    towards better). Points without shared views give the difference of their means and the
+    sum of their interval half-widths.
+
+    Returns
+    -------
+    (mean, half) : tuple of float
+        ``a`` is better beyond the intervals when ``mean - half > 0``, worse when
+        ``mean + half < 0``.
     """
     sign = 1.0 if higher_is_better else -1.0
     shared = sorted(set(a.per_view) & set(b.per_view))
     if not shared:
-        worst_a = a.error_lo if higher_is_better else a.error_hi
-        best_b = b.error_hi if higher_is_better else b.error_lo
-        return sign * (worst_a - best_b) > 0.0
-    diffs, noise = [], []
+        mean = sign * (a.error - b.error)
+        if (mean >= 0) == higher_is_better:  # a's lower end against b's upper end
+            half = (a.error - a.error_lo) + (b.error_hi - b.error)
+        else:
+            half = (a.error_hi - a.error) + (b.error - b.error_lo)
+        return mean, half
+    diffs, up, down = [], [], []
     for view in shared:
         (va, lo_a, hi_a), (vb, lo_b, hi_b) = a.per_view[view], b.per_view[view]
         diffs.append(sign * (va - vb))
-        towards_worse_a = (va - lo_a) if higher_is_better else (hi_a - va)
-        towards_better_b = (hi_b - vb) if higher_is_better else (vb - lo_b)
-        noise.append(towards_worse_a + towards_better_b)
+        # Noise that could make a look better than it is (up) or worse (down), as a gain of a.
+        a_worse, a_better = (va - lo_a, hi_a - va) if higher_is_better else (hi_a - va, va - lo_a)
+        b_worse, b_better = (vb - lo_b, hi_b - vb) if higher_is_better else (hi_b - vb, vb - lo_b)
+        up.append(a_worse + b_better)
+        down.append(a_better + b_worse)
     n = len(diffs)
     mean = sum(diffs) / n
     spread = 0.0
     if n >= 2:
         sd = math.sqrt(sum((d - mean) ** 2 for d in diffs) / (n - 1))
         spread = t95(n - 1) * sd / math.sqrt(n)
-    return mean - spread - sum(noise) / n > 0.0
+    return mean, spread + sum(up if mean >= 0 else down) / n
+
+
+def better_beyond(a: Any, b: Any, *, higher_is_better: bool) -> bool:
+    """Whether ``a``'s error is better than ``b``'s beyond the intervals (docs/PROTOCOL.md).
+
+    A paired comparison over the views both were measured on (:func:`paired_difference`): the
+    mean per-view difference must exceed Student's t (n − 1 degrees of freedom) times its
+    standard error plus the reference-noise half-widths of both (``a``'s towards worse,
+    ``b``'s towards better). Points without shared views are compared by their whole intervals.
+    """
+    mean, half = paired_difference(a, b, higher_is_better=higher_is_better)
+    return mean - half > 0.0

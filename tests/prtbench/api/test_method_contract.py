@@ -14,7 +14,7 @@ from prtbench.scene.registry import SCENES
 DECLARED = ("name", "Config", "precompute_version", "profile_overrides", "summary", "paper",
             "light_dependence", "light_dependence_why", "fixed_view", "views_in_key",
             "light_baking_knobs", "storage", "main_knobs", "glossy_only", "regression_case",
-            "regression_variants", "no_visibility_reason")
+            "regression_variants", "no_visibility_reason", "family", "engine_baseline", "verdict_grid")
 HOOKS = ("make_config", "cache_identity", "validate", "validate_resolution",
          "compress_dimension", "precompute", "renderer", "op_counts")
 
@@ -33,7 +33,12 @@ def test_each_method_declares_what_drivers_read(name):
     assert cls.name == name and cls.summary and cls.paper
     assert cls.storage in STORAGES, f"{name}: storage {cls.storage!r}"
     assert cls.light_dependence in LIGHT_DEPENDENCES
+    assert cls.family, f"{name}: no family (prtbench verdict compares families)"
+    assert isinstance(cls.engine_baseline, bool)
     knobs = {f.name for f in dataclasses.fields(cls.Config)}
+    for knob, values in (cls.verdict_grid or {}).items():  # prtbench verdict's cells
+        assert knob in knobs and (values in ("auto", "auto2") and knob == "texture_resolution"
+                                  or isinstance(values, list) and values), (name, knob)
     assert set(cls.main_knobs) <= knobs, f"{name}: main_knobs {cls.main_knobs} not all knobs"
     case = dict(cls.regression_case)
     assert set(case) <= {"scene", "variant", "light", "scene_params", "overrides"}, name
