@@ -98,15 +98,16 @@ table-stability: setup
 
 # The engine verdict (issue #52): on plants, room, dining-table and four-animals, each method
 # family's best configuration within 1, 8 and 64 MiB resident and at the engine baseline's work
-# per frame, PRT against what engines ship, measured where the store lacks it (about 40 min on
-# 2 cores at quick, four-animals' 169k triangles most of it): reports/table-engine.{md,csv}.
-# Explicit, so the table-% rule (paper tables) does not take it.
+# per frame, PRT against what engines ship, measured where the store lacks it on one worker,
+# so that the load it records stays that of an idle machine (two workers on 2 cores reached a
+# 1-min load of 3.6); about 20 min on 2 cores at quick, four-animals' 169k triangles most of it:
+# reports/table-engine.{md,csv}. Explicit, so the table-% rule (paper tables) does not take it.
 ENGINE_SCENES := plants room dining-table four-animals
 .PHONY: table-engine
 table-engine: setup  ## PRT against engine baselines at equal memory and work, four scenes
 	$(PRTBENCH) assets fetch cgal-meshes  # four-animals' meshes
 	$(PRTBENCH) verdict $(addprefix --scene ,$(ENGINE_SCENES)) --name table-engine \
-	    --profile $(PROFILE)
+	    --profile $(PROFILE) --workers 1
 
 tables: $(addprefix table-,$(TABLES))
 figures: $(addprefix figure-,$(FIGURES))

@@ -54,6 +54,7 @@ class LightmapRenderer(AtlasRenderer):
                          width=width, height=height)
         self.filled = np.asarray(arrays["filled"], bool)
         self.baked_hash = meta.get("bake_light_hash")
+        self.bakes_its_light = self.baked_hash is not None
         self.baked_name = meta.get("bake_light")
         if self.baked_hash is not None:
             layers = arrays["lightmap"]

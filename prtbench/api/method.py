@@ -147,6 +147,10 @@ class Renderer(ABC):
     #: :meth:`frame_time` where a frame has parts (CPU relighting, upload, draw, readback,
     #: network, ...); empty: the whole frame is one part.
     frame_components: dict[str, float] = {}
+    #: True when the renderer draws the one light its precompute baked and refuses any other
+    #: (a lightmap baked with ``bake_light``): a new light is a new precompute, not work of the
+    #: renderer's, so the runner times no ``light_change_ms`` for it.
+    bakes_its_light: bool = False
 
     def light_change(self, light: "EnvironmentLight") -> bool:
         """Do, from scratch, the work a new ``light`` costs before its first frame (an SH
@@ -226,7 +230,8 @@ class Method(ABC):
     #: The configurations ``prtbench verdict`` measures where the store lacks them (None: the
     #: method is not in the verdict): knob -> values, ``{}`` for the profile's defaults. A
     #: ``texture_resolution`` of ``"auto"`` is the smallest atlas that packs the scene,
-    #: ``"auto2"`` that and twice it (:func:`prtbench.tradeoff.verdict.auto_texture_resolutions`).
+    #: ``"auto2"`` that and twice it (:func:`prtbench.tradeoff.verdict.auto_texture_resolutions`);
+    #: ``"@light"`` is the verdict's light (a baked light, as engines ship it).
     verdict_grid: ClassVar[Mapping[str, Any] | None] = None
     #: Knobs along which accuracy and cost both grow, in the order ``prtbench advise``
     #: searches them (e.g. ``("sh_bands",)``); none: the advisor measures the defaults only.

@@ -82,7 +82,11 @@ def time_light_change(renderer: Any, view: Any, light: Any, *, repeats: int = 3
     :meth:`~prtbench.transport.lights.EnvironmentLight.as_new_light`: no memoised or cached
     projection, no per-light state in the renderer) minus a ``render`` of the known light:
     the SH projection, TPFL matrix, probe products, cubemap resampling or median cut a light
-    change pays, measured the same way for every method. Medians over ``repeats``."""
+    change pays, measured the same way for every method. Medians over ``repeats``. None for a
+    renderer that :attr:`~prtbench.api.method.Renderer.bakes_its_light`."""
+    if renderer.bakes_its_light:  # it refuses any other light: a change is a new precompute
+        return None
+
     def timed(call) -> float:
         start = time.perf_counter()
         call()

@@ -24,7 +24,8 @@ from pathlib import Path
 import jinja2
 
 from prtbench.api.errors import InvalidInputError
-from prtbench.bench import outputs
+from prtbench.bench import claims as claims_mod
+from prtbench.bench import claims_page, outputs
 from prtbench.bench.reproduction import run_table
 from prtbench.render import renders
 from prtbench.site import data as data_mod
@@ -39,6 +40,8 @@ MARKER = ".prtbench-site"
 #: Files of ``static/`` copied next to the pages; plotly.js comes from the plotly package.
 STATIC = ("site.css", "compare.js", "pareto.js")
 PLOTLY_JS = "plotly.min.js"
+#: The claims ledger's page (a reproduction certificate).
+CLAIMS_PAGE = "claims.html"
 #: Folders of a previous site kept across rebuilds.
 KEPT = ("screenshots",)
 
@@ -165,13 +168,32 @@ def _write(site: data_mod.SiteData, root: Path, *, cache: Path | None, echo: boo
             provenance=data_mod.provenance([], cache=cache, measured=stability_mod.measured(page)))
         (root / page.file).write_text(html, encoding="utf-8")
         pages.append(page.file)
+    pages.append(_claims_page(site, root, env, reproduced=reproduced, cache=cache))
     html = env.get_template("index.html").render(
-        site=site, overview=_overview(site), reproduced=reproduced,
+        site=site, overview=_overview(site), reproduced=reproduced, claims=CLAIMS_PAGE,
         provenance=data_mod.provenance(site.rows, cache=cache),
         title="prtbench comparison report")
     (root / "index.html").write_text(html, encoding="utf-8")
     pages.insert(0, "index.html")
     return BuildSummary(out=root, pages=pages, images_made=maker.made, images_reused=maker.reused)
+
+
+def _claims_page(site: data_mod.SiteData, root: Path, env, *,
+                 reproduced: list[data_mod.Reproduced], cache: Path | None) -> str:
+    """The reproduction certificate: every claim of the ledger decided from the site's store
+    (:func:`prtbench.bench.claims.evaluate`), linked to the report pages the site has."""
+    assessments, error = [], ""
+    try:
+        assessments = claims_mod.evaluate(claims_mod.all_claims(), results_path=site.results_path)
+    except Exception as exc:  # noqa: BLE001 - a broken ledger must not sink the site
+        error = " ".join(str(exc).split()) or type(exc).__name__
+    html = env.get_template("claims.html").render(
+        site=site, assessments=assessments, counts=claims_page.counts(assessments), error=error,
+        provenance=data_mod.provenance(site.rows, cache=cache),
+        report_pages={f"{item.kind} {item.name}": item.file for item in reproduced},
+        title="the papers' claims")
+    (root / CLAIMS_PAGE).write_text(html, encoding="utf-8")
+    return CLAIMS_PAGE
 
 
 def _plotly_js() -> Path:

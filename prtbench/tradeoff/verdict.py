@@ -78,7 +78,17 @@ def auto_texture_resolutions(triangles: int, *, count: int = 1) -> list[int]:
     return [first << i for i in range(count)]
 
 
-def verdict_spec(*, scene: str, light: str | None, triangles: int, profile: str,
+def _values(declared: Any, *, triangles: int, light: str) -> list:
+    """A ``verdict_grid`` entry's values: ``auto``/``auto2`` texture resolutions for the scene,
+    ``@light`` the verdict's light, else the list as declared."""
+    if declared in ("auto", "auto2"):
+        return auto_texture_resolutions(triangles, count=2 if declared == "auto2" else 1)
+    if declared == "@light":
+        return [light]
+    return list(declared)
+
+
+def verdict_spec(*, scene: str, light: str, triangles: int, profile: str,
                  scene_params: Mapping[str, Any] | None = None, views: int | None = None,
                  methods: Sequence[str] | None = None) -> dict[str, Any]:
     """The sweep spec (:func:`prtbench.tradeoff.grid.expand`'s schema) of one scene's verdict:
@@ -90,13 +100,10 @@ def verdict_spec(*, scene: str, light: str | None, triangles: int, profile: str,
         declared = METHODS.get(name).verdict_grid
         if declared is None or (methods is not None and name not in methods):
             continue
-        grid = {k: (auto_texture_resolutions(triangles, count=2 if v == "auto2" else 1)
-                    if isinstance(v, str) else list(v)) for k, v in declared.items()}
+        grid = {k: _values(v, triangles=triangles, light=light) for k, v in declared.items()}
         tables.append({"name": name, **({"grid": grid} if grid else {})})
-    spec: dict[str, Any] = {"profile": profile, "scene": scene, "variant": "diffuse",
-                            "reference_bounces": 1, "method": tables}
-    if light:
-        spec["light"] = light
+    spec: dict[str, Any] = {"profile": profile, "scene": scene, "light": light,
+                            "variant": "diffuse", "reference_bounces": 1, "method": tables}
     if scene_params:
         spec["scene_params"] = dict(scene_params)
     if views is not None:
@@ -340,7 +347,8 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
         built[scene] = get_scene(scene, **dict(scene_params or {}))
     sweeps = []
     for scene in scenes:
-        spec = verdict_spec(scene=scene, light=light, triangles=built[scene].n_triangles,
+        spec = verdict_spec(scene=scene, light=light or built[scene].default_light,
+                            triangles=built[scene].n_triangles,
                             profile=profile, scene_params=scene_params, views=views)
         sweeps.append(grid_mod.expand(spec, source="command line", profile=profile))
     result = VerdictResult(scenes=list(scenes), profile=profile, panels=[], skipped=[])

@@ -38,6 +38,7 @@ def test_each_method_declares_what_drivers_read(name):
     knobs = {f.name for f in dataclasses.fields(cls.Config)}
     for knob, values in (cls.verdict_grid or {}).items():  # prtbench verdict's cells
         assert knob in knobs and (values in ("auto", "auto2") and knob == "texture_resolution"
+                                  or values == "@light"
                                   or isinstance(values, list) and values), (name, knob)
     assert set(cls.main_knobs) <= knobs, f"{name}: main_knobs {cls.main_knobs} not all knobs"
     case = dict(cls.regression_case)

@@ -560,3 +560,26 @@ def test_stability_page_colours_each_outcome_and_prints_the_stored_numbers(store
     colours = {o: re.search(rf"\.outcome-{o} {{ background: (#[0-9a-f]+)", css).group(1)
                for o in ("ok", "degraded", "refused", "failed")}
     assert len(set(colours.values())) == 4, colours
+
+
+def test_claims_page_is_the_ledger_decided_from_the_store(store, site):
+    # Every claim of the ledger, each with the verdict, ours and the command that
+    # `prtbench claims` decides from the same store; a claim of a report the site has links to
+    # that report's page, one without a run says so.
+    from prtbench.bench.claims import all_claims, evaluate
+
+    expected = {a.claim.id: a for a in evaluate(all_claims(), results_path=store)}
+    text = (site / "claims.html").read_text()
+    rows = re.findall(r'<tr id="([^"]+)" data-claim="[^"]+" data-verdict="([^"]+)">(.*?)</tr>',
+                      text, re.S)
+    assert len(rows) == len(expected) >= 45
+    for claim_id, verdict, body in rows:
+        a = expected[claim_id]
+        assert html.unescape(verdict) == a.verdict, claim_id
+        assert f"<code>{html.escape(a.command)}</code>" in body
+    measured = [a for a in expected.values() if a.claim.report == "table tessellation"]
+    assert measured and all(not a.no_data for a in measured)
+    for a in measured:
+        body = next(b for i, _, b in rows if i == a.claim.id)
+        assert 'href="table-tessellation-smoke.html"' in body
+    assert 'href="claims.html"' in (site / "index.html").read_text()

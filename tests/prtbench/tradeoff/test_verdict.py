@@ -65,6 +65,8 @@ def test_every_family_of_the_grid_and_the_engine_baselines():
                                                      "lightmap"}
     tpfl = next(t for t in spec["method"] if t["name"] == "texture-tpfl")
     assert tpfl["grid"]["texture_resolution"] == [256, 512]
+    lightmap = next(t for t in spec["method"] if t["name"] == "lightmap")
+    assert lightmap["grid"]["bake_light"] == ["sky"]  # baked, as engines ship it
     assert spec["reference_bounces"] == 1  # one reference: one panel
 
 
