@@ -34,6 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=integer("a whole number of workers, 0 (serial, no Dask) "
                                              "or more"), default=None,
                    help="Dask workers of the measurement (default: cores; 0: serial)")
+    p.add_argument("--method", action="append", default=None,
+                   help="measure only this method's verdict cells (repeatable; default: all)")
     p.add_argument("--no-measure", action="store_true",
                    help="read the store only; measure nothing")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -44,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
                      results_path=args.results, reports_dir=args.reports, name=args.name,
                      scene_params=parse_overrides(args.scene_param or []),
                      measure=not args.no_measure, workers=args.workers, views=args.views,
+                     methods=args.method,
                      command=_command(args), progress=not args.quiet,
                      echo=(lambda text: None) if args.quiet else None)
     print("\n".join(result.measured))

@@ -42,6 +42,7 @@ from prtbench.api.errors import InvalidInputError, PrtbenchError
 from prtbench.api.method import METHODS
 from prtbench.api.profiles import get_profile
 from prtbench.bench import outputs
+from prtbench.scene.files import is_scene_path
 from prtbench.scene.registry import SCENES, get_scene
 from prtbench.store.results import default_path
 from prtbench.tradeoff import grid as grid_mod
@@ -291,7 +292,7 @@ _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
 def report_stem(scenes: Sequence[str], light: str | None) -> str:
     """``verdict-<scene>[-<scene>…]-<light>`` (filename-safe; ``default`` for each scene's own
     light)."""
-    names = [_SAFE.sub("_", Path(s).stem if "/" in s else s) for s in scenes]
+    names = [_SAFE.sub("_", Path(s).stem if is_scene_path(s) else s) for s in scenes]
     return f"verdict-{'-'.join(names)}-{_SAFE.sub('_', light or 'default')}"
 
 
@@ -301,7 +302,8 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
             results_path: str | Path | None = None, reports_dir: str | Path = "reports",
             name: str | None = None, scene_params: Mapping[str, Any] | None = None,
             measure: bool = True, workers: int | None = None, views: int | None = None,
-            command: str = "prtbench verdict", progress: bool = True,
+            methods: Sequence[str] | None = None, command: str = "prtbench verdict",
+            progress: bool = True,
             echo: Callable[[str], None] | None = None) -> VerdictResult:
     """Measure what the store lacks (unless ``measure`` is False), then the verdict's reports.
 
@@ -323,6 +325,9 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
         Dask workers of the measurement (default one per core; 0: serial).
     views : int, optional
         Views per configuration (default: the profile's).
+    methods : sequence of str, optional
+        Only these methods' verdict cells are measured (default: every method with a
+        ``verdict_grid``); the store's other rows still count.
 
     Raises
     ------
@@ -332,6 +337,12 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
     """
     echo = echo or (lambda text: print(text, file=sys.stderr, flush=True))
     get_profile(profile)
+    for method in methods or ():
+        if METHODS.get(method).verdict_grid is None:
+            raise InvalidInputError(f"--method '{method}' has no verdict configurations; "
+                                    "accepted: " + ", ".join(
+                                        n for n in METHODS.names()
+                                        if METHODS.get(n).verdict_grid is not None))
     if not scenes:
         raise InvalidInputError("verdict: no --scene; accepted: one or more scene names or "
                                 "asset files (prtbench list scenes)")
@@ -349,9 +360,12 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
     for scene in scenes:
         spec = verdict_spec(scene=scene, light=light or built[scene].default_light,
                             triangles=built[scene].n_triangles,
-                            profile=profile, scene_params=scene_params, views=views)
+                            profile=profile, scene_params=scene_params, views=views,
+                            methods=methods)
         sweeps.append(grid_mod.expand(spec, source="command line", profile=profile))
-    result = VerdictResult(scenes=list(scenes), profile=profile, panels=[], skipped=[])
+    labels = {s: Path(s).name if is_scene_path(s) else s for s in scenes}  # no machine path
+    result = VerdictResult(scenes=[labels[s] for s in scenes], profile=profile, panels=[],
+                           skipped=[])
     if measure:
         cells = [c for s in sweeps for c in s.cells]
         echo(f"verdict: {len(cells)} cells on {', '.join(scenes)} ({profile}); cells already "
@@ -369,7 +383,7 @@ def verdict(*, scenes: Sequence[str], light: str | None = None, profile: str = "
         selection = open_selection(scene=scene, light=light, error=ERROR, cost="memory",
                                    profile=profile, results_path=path, reports_dir=reports,
                                    scene_params=scene_params)
-        label = scene if "/" not in scene else Path(scene).name
+        label = labels[scene]
         for stored_light in selection.rows_by_light:
             if light is None and stored_light != built[scene].default_light:
                 continue

@@ -664,3 +664,21 @@ def test_held_out_scenes_land_within_1_25x_of_exhaustive_search(scene, light):
     assert advice.met and advice.choice.cost <= 1.25 * best, (
         target, advice.choice.candidate, advice.choice.cost, best)
     assert advice.evaluated < len(candidates)
+
+
+def test_advise_on_a_file_scene(tmp_path, capsys, monkeypatch):
+    # `advise --scene file.glb` runs like on a built-in scene: the analysis, the screening and
+    # the verified answer, all on the imported glTF (real runs at smoke, serially).
+    from prtbench.cli import main
+    from tests.prtbench.tradeoff.test_verdict import ball_on_ground_glb
+
+    monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "cache"))
+    glb = ball_on_ground_glb(tmp_path / "ball.glb")
+    out = tmp_path / "advice.json"
+    code = main(["advise", "--scene", str(glb), "--target", "psnr_masked>=10", "--method",
+                 "vertex", "--band-margin", "0", "--profile", "smoke", "--workers", "0",
+                 "--results", str(tmp_path / "r.sqlite"), "--json", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    doc = _strict(out.read_text())
+    assert doc["method"] == "vertex" and doc["evaluated"] >= 1
+    assert doc["metrics"]["psnr_masked"] >= 10.0  # met (exit status 0), verified by a run

@@ -131,21 +131,42 @@ def test_verdict_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, args
     assert not missing.exists() and not (tmp_path / "r").exists()
 
 
-def test_verdict_measures_what_the_store_lacks_then_only_reads(tmp_path, capsys, monkeypatch):
-    # sphere-over-plane at smoke, serially: every cell of the grid measured once (a second
-    # verdict stores nothing new), and each family has a row within 64 MiB.
+def ball_on_ground_glb(path):
+    """A glTF file scene: a 320-triangle ball on a thin ground box (written by trimesh)."""
+    import trimesh
+
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+                       .apply_translation([0, 0.5, 0]), node_name="ball")
+    scene.add_geometry(trimesh.creation.box(extents=[4, 0.02, 4])
+                       .apply_translation([0, -0.01, 0]), node_name="ground")
+    scene.export(str(path))
+    return path
+
+
+def test_verdict_on_a_file_scene_measures_what_the_store_lacks_then_only_reads(
+        tmp_path, capsys, monkeypatch):
+    # A glTF file at smoke, serially, two families: every cell measured once (a second verdict
+    # stores nothing new and prints the same), each family with a row within 64 MiB.
     monkeypatch.setenv("PRTBENCH_CACHE", str(tmp_path / "cache"))
+    glb = ball_on_ground_glb(tmp_path / "ball.glb")
     results, reports = tmp_path / "store.sqlite", tmp_path / "reports"
-    args = ["verdict", "--scene", "sphere-over-plane", "--profile", "smoke", "--workers", "0",
-            "--results", str(results), "--reports", str(reports), "--quiet"]
+    args = ["verdict", "--scene", str(glb), "--profile", "smoke", "--workers", "0",
+            "--method", "vertex", "--method", "ao-bent-normal", "--results", str(results),
+            "--reports", str(reports), "--quiet"]
     assert main(args) == 0
     out = capsys.readouterr().out
-    assert re.search(r"^\d+ measured, 0 already stored, 0 failed$", out, re.M), out
+    assert re.search(r"^3 measured, 0 already stored, 0 failed$", out, re.M), out
     rows = len(ResultsStore(results, readonly=True).query())
     assert main(args) == 0
-    assert re.search(r"^0 measured, \d+ already stored, 0 failed$", capsys.readouterr().out, re.M)
+    again = capsys.readouterr().out
+    assert re.search(r"^0 measured, 3 already stored, 0 failed$", again, re.M)
+    assert again.splitlines()[1:] == out.splitlines()[1:]
     assert len(ResultsStore(results, readonly=True).query()) == rows
-    with open(reports / "verdict-sphere-over-plane-default.csv") as fh:
+    md = (reports / "verdict-ball-default.md").read_text()
+    assert "--scene ball.glb" in md and str(tmp_path) not in md  # no machine path
+    with open(reports / "verdict-ball-default.csv") as fh:
         table = [r for r in csv.DictReader(fh) if r["budget_as_written"] == "64 MiB"]
-    assert {r["family"] for r in table if r["psnr_masked"]} == {
-        "SH PRT", "wavelet PRT", "probe volume", "AO + bent normal", "lightmap"}
+    assert {r["family"] for r in table if r["psnr_masked"]} == {"SH PRT", "AO + bent normal"}
+    assert re.search(r"at 8 MiB, vertex \(SH PRT, relight\) (beats|ties with|is beaten by) the "
+                     r"best engine baseline, ao-bent-normal", md)
