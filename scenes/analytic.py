@@ -17,6 +17,8 @@ fraction 0.24993 against (r/h)² = 0.25, a relative bias of −0.03 % (the inscr
 
 from __future__ import annotations
 
+import dataclasses
+
 from prtbench.api.errors import InvalidInputError
 from prtbench.scene import params as P
 from prtbench.scene.geometry import grid_plane
@@ -65,10 +67,11 @@ def plane(*, variant: str = "diffuse", size: float = 4.0, subdivisions: int = 1)
 @register_scene("sphere-over-plane", params={
     "radius": P.length(), "height": P.length(),
     "sphere_segments": P.count(low=8, triangles=lambda s: float(s) * s),
-    "plane_size": P.length(), "plane_subdivisions": P.grid_subdivisions()})
+    "plane_size": P.length(), "plane_subdivisions": P.grid_subdivisions(),
+    "sphere_shininess": P.real(low=0.0, high=1e6)})
 def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: float = 1.0,
                       sphere_segments: int = 64, plane_size: float = 8.0,
-                      plane_subdivisions: int = 1) -> Scene:
+                      plane_subdivisions: int = 1, sphere_shininess: float | None = None) -> Scene:
     """A sphere of ``radius`` centred at (0, ``height``, 0) over the y = 0 ground plane.
 
     Parameters
@@ -85,6 +88,9 @@ def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: 
         Ground edge length.
     plane_subdivisions : int
         Ground quads per side k (2·k² triangles).
+    sphere_shininess : float, optional
+        Phong exponent s of the glossy sphere (default 128; the gloss sweep of table
+        factored-gloss). Ignored by the diffuse variant.
     """
     _check_variant(variant)
     if not (radius > 0 and height > radius):
@@ -96,12 +102,17 @@ def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: 
         raise InvalidInputError(f"plane_size={plane_size}; accepted: > 2 * radius")
     ball = uv_sphere(radius=radius, segments=sphere_segments, center=(0.0, height, 0.0),
                      match_area=True)
+    sphere = SPHERE[variant]
+    if sphere_shininess is not None and variant == "glossy":
+        sphere = dataclasses.replace(sphere, shininess=float(sphere_shininess))
     objects = [SceneObject("ground", grid_plane(plane_size, plane_subdivisions), GROUND[variant]),
-               SceneObject("sphere", ball, SPHERE[variant])]
+               SceneObject("sphere", ball, sphere)]
     extent = height + radius
     views = Trajectory.orbit(center=(0.0, 0.5 * extent, 0.0), radius=3.0 * extent,
                              height=1.2 * extent, n_views=30)
     params = {"radius": radius, "height": height, "sphere_segments": sphere_segments,
               "plane_size": plane_size, "plane_subdivisions": plane_subdivisions}
+    if sphere_shininess is not None:
+        params["sphere_shininess"] = float(sphere_shininess)
     return Scene("sphere-over-plane", objects, variant=variant, default_light="sky",
                  trajectory=views, exposure=0.7, params=params)

@@ -124,9 +124,19 @@ def committed_reports() -> list[str]:
     return md + sorted(p.name for p in REPORTS.glob("*.csv") if p.stem not in stems)
 
 
-@pytest.mark.xfail(not REPORTS_REGENERATED, strict=False,
-                   reason="the committed reports predate `make reports` (REPORTS_REGENERATED)")
-@pytest.mark.parametrize("name", committed_reports())
+#: Reports already measured under these rules (one clean commit, an idle machine): their test
+#: is an ordinary one now, whatever REPORTS_REGENERATED says.
+UNDER_THE_RULES = ("table-engine.md",)
+
+
+def _expectation(name: str):
+    if REPORTS_REGENERATED or name in UNDER_THE_RULES:
+        return name
+    return pytest.param(name, marks=pytest.mark.xfail(
+        strict=False, reason="the committed reports predate `make reports` (REPORTS_REGENERATED)"))
+
+
+@pytest.mark.parametrize("name", [_expectation(n) for n in committed_reports()])
 def test_committed_report_names_one_clean_commit_an_idle_machine_and_no_machine_path(name):
     problems = report_problems(REPORTS / name)
     assert not problems, f"reports/{name}: " + "; ".join(problems)

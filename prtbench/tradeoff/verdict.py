@@ -216,25 +216,42 @@ def _best(rows: Sequence[FamilyRow], *, engine: bool, relight_only: bool) -> Fam
     return max(chosen, key=lambda f: (f.point.error, -f.point.cost), default=None)
 
 
+def _opponent(prt: FamilyRow, engines: Sequence[FamilyRow]) -> tuple[FamilyRow, str, float, float]:
+    """The engine baseline the conclusion names, with the paired comparison against it: one
+    that beats the PRT row beyond the intervals (the clearest), else, when the PRT row beats
+    every one, the closest of them, else the best by mean of those it ties with."""
+    compared = [(e, *difference_text(prt.point, e.point)) for e in engines]
+    beaten = [c for c in compared if c[1] == "is beaten by"]
+    if beaten:  # the largest margin beyond the interval
+        return max(beaten, key=lambda c: -c[2] - c[3])
+    ties = [c for c in compared if c[1] == "ties with"]
+    return max(ties or compared, key=lambda c: c[0].point.error)
+
+
 def conclusion(rows: Sequence[FamilyRow], *, budget: Budget, scene: str,
                relight_only: bool) -> str:
-    """The one-line verdict of one budget block: best PRT family against best engine baseline."""
+    """The one-line verdict of one budget block: the best PRT family against the engine
+    baselines, paired beyond the intervals (:func:`_opponent`)."""
     what = "relightable " if relight_only else ""
     prt = _best(rows, engine=False, relight_only=relight_only)
-    engine = _best(rows, engine=True, relight_only=relight_only)
+    engines = [f for f in rows if f.point is not None and f.engine
+               and (not relight_only or f.point.light_class == "relight")]
     at = f"at {budget.text}"
-    if prt is None and engine is None:
+    if prt is None and not engines:
         return f"{at}, no {what}configuration fits on {scene}"
     if prt is None:
+        best = max(engines, key=lambda f: f.point.error)
         return (f"{at}, no {what}PRT configuration fits on {scene}; the best {what}engine "
-                f"baseline is {engine.point.method} ({engine.point.error:.2f} dB)")
-    if engine is None:
+                f"baseline is {best.point.method} ({best.point.error:.2f} dB)")
+    if not engines:
         return (f"{at}, no {what}engine baseline fits on {scene}; the best {what}PRT "
                 f"method is {prt.point.method} ({prt.point.error:.2f} dB)")
-    word, mean, half = difference_text(prt.point, engine.point)
-    who = (f"{at}, {prt.point.method} ({prt.family}, {prt.point.light_class}) {word} the best "
-           f"{what}engine baseline, {engine.point.method} ({engine.family}, "
-           f"{engine.point.light_class})")
+    engine, word, mean, half = _opponent(prt, engines)
+    whom = {"beats": f"every {what}engine baseline; the closest,",
+            "ties with": f"the {what}engine baseline",
+            "is beaten by": f"the {what}engine baseline"}[word]
+    who = (f"{at}, {prt.point.method} ({prt.family}, {prt.point.light_class}) {word} {whom} "
+           f"{engine.point.method} ({engine.family}, {engine.point.light_class})")
     if word == "ties with":
         return (f"{who} on {scene}: masked PSNR difference {mean:+.2f} ± {half:.2f} dB, within "
                 "the intervals")

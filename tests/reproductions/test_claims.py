@@ -646,8 +646,12 @@ def _shape_nw(store):
     _report(store, "figure", "nw-6", tables={"figure-nw-6": stats})
 
 
+def _shape_factored_gloss(store):
+    _factored_gloss(store, lambda s, setup: 24.0 - 0.25 * math.log2(s))
+
+
 SHAPES = (_shape_31, _shape_32, _shape_figures_3x, _shape_tessellation, _shape_4x,
-          _shape_volume, _shape_ddprt, _shape_lecture, _shape_nw)
+          _shape_volume, _shape_ddprt, _shape_lecture, _shape_nw, _shape_factored_gloss)
 
 
 def test_every_claim_reads_the_shape_its_report_stores(tmp_path, ledger):
@@ -663,3 +667,33 @@ def test_every_claim_reads_the_shape_its_report_stores(tmp_path, ledger):
             assert "Explained by:" in a.explanation or "unexplained" in a.explanation
     assert {claims.REPRODUCED, claims.DIRECTION, claims.DEVICE_BOUND,
             claims.NOT_MEASURABLE} <= {a.verdict for a in assessed}
+
+
+def _factored_gloss(store, psnr_of):
+    """table factored-gloss as it stores itself: per Phong exponent s and setup, four views."""
+    cells = []
+    for s in (8, 32, 128, 512):
+        for setup, method in (("factored J=1", "factored-brdf"), ("factored J=4", "factored-brdf"),
+                              ("sloan-matrix", "sloan-matrix")):
+            rid = f"fg-{s}-{setup}-{psnr_of(s, setup)}"
+            cells.append(({"setup": setup, "shininess": s}, [
+                _row(method, run_id=rid, view=v, psnr=psnr_of(s, setup) + 0.05 * v, half=0.1)
+                for v in range(4)]))
+    _report(store, "table", "factored-gloss", cells=cells)
+
+
+def test_factored_brdf_against_gloss_is_decided_from_its_table(tmp_path, ledger):
+    # The factored form loses 1.5 dB from s = 8 to s = 512 (beyond ±0.1 dB of noise): the
+    # lecture's "only less glossy materials" reproduced; flat, it is not.
+    losing, flat = tmp_path / "losing.sqlite", tmp_path / "flat.sqlite"
+    _factored_gloss(losing, lambda s, setup: 24.0 - 0.25 * math.log2(s)
+                    - (0.5 if setup == "sloan-matrix" else 0.0))
+    _factored_gloss(flat, lambda s, setup: 24.0)
+    a = _evaluate(losing, ledger, "lecture-41-factored-brdf-low-gloss")
+    assessment = a["lecture-41-factored-brdf-low-gloss"]
+    assert assessment.verdict == claims.REPRODUCED, assessment
+    assert "factored J=1: s=8 − s=512" in assessment.interval
+    assert "against the unfactored matrix at s=512: factored J=1 +0.50 dB" in assessment.ours
+    assert assessment.command == "prtbench table factored-gloss --profile quick"
+    b = _evaluate(flat, ledger, "lecture-41-factored-brdf-low-gloss")
+    assert b["lecture-41-factored-brdf-low-gloss"].verdict != claims.REPRODUCED
