@@ -71,7 +71,7 @@ def plane(*, variant: str = "diffuse", size: float = 4.0, subdivisions: int = 1)
     "sphere_shininess": P.real(low=0.0, high=1e6)})
 def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: float = 1.0,
                       sphere_segments: int = 64, plane_size: float = 8.0,
-                      plane_subdivisions: int = 1, sphere_shininess: float | None = None) -> Scene:
+                      plane_subdivisions: int = 1, sphere_shininess: float = 128.0) -> Scene:
     """A sphere of ``radius`` centred at (0, ``height``, 0) over the y = 0 ground plane.
 
     Parameters
@@ -88,9 +88,9 @@ def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: 
         Ground edge length.
     plane_subdivisions : int
         Ground quads per side k (2·k² triangles).
-    sphere_shininess : float, optional
-        Phong exponent s of the glossy sphere (default 128; the gloss sweep of table
-        factored-gloss). Ignored by the diffuse variant.
+    sphere_shininess : float
+        Phong exponent s of the glossy sphere (the gloss sweep of table factored-gloss).
+        Ignored by the diffuse variant.
     """
     _check_variant(variant)
     if not (radius > 0 and height > radius):
@@ -103,7 +103,7 @@ def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: 
     ball = uv_sphere(radius=radius, segments=sphere_segments, center=(0.0, height, 0.0),
                      match_area=True)
     sphere = SPHERE[variant]
-    if sphere_shininess is not None and variant == "glossy":
+    if variant == "glossy" and sphere_shininess != sphere.shininess:
         sphere = dataclasses.replace(sphere, shininess=float(sphere_shininess))
     objects = [SceneObject("ground", grid_plane(plane_size, plane_subdivisions), GROUND[variant]),
                SceneObject("sphere", ball, sphere)]
@@ -111,8 +111,7 @@ def sphere_over_plane(*, variant: str = "diffuse", radius: float = 0.5, height: 
     views = Trajectory.orbit(center=(0.0, 0.5 * extent, 0.0), radius=3.0 * extent,
                              height=1.2 * extent, n_views=30)
     params = {"radius": radius, "height": height, "sphere_segments": sphere_segments,
-              "plane_size": plane_size, "plane_subdivisions": plane_subdivisions}
-    if sphere_shininess is not None:
-        params["sphere_shininess"] = float(sphere_shininess)
+              "plane_size": plane_size, "plane_subdivisions": plane_subdivisions,
+              "sphere_shininess": float(sphere_shininess)}
     return Scene("sphere-over-plane", objects, variant=variant, default_light="sky",
                  trajectory=views, exposure=0.7, params=params)
