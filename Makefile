@@ -144,7 +144,7 @@ report: setup  ## static HTML comparison site from the store and the image cache
 REPORT_TARGETS := $(addprefix table-,$(TABLES)) $(addprefix figure-,$(FIGURES)) pareto \
                   table-stability table-engine claims
 .PHONY: reports
-reports: setup  ## regenerate every committed report from one clean commit (hours on 2 cores)
+reports: setup assets  ## regenerate every committed report from one clean commit (hours on 2 cores)
 	ALLOW_DIRTY=$(ALLOW_DIRTY) $(PY) scripts/reports_guard.py run --make "$(MAKE)" --profile quick \
 	    $(if $(REPORTS_FROM),--start-at $(REPORTS_FROM)) $(REPORT_TARGETS)
 

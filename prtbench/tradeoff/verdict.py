@@ -294,11 +294,15 @@ def panel_verdicts(selection, light: str, *, scene_label: str) -> tuple[list[Pan
         else:
             skipped.append(f"{scene_label}/{light} {panel}: no equal-work budget ({note})")
         middle = blocks[CONCLUSION_BUDGET]
+        # Under a changing sky each family stands by its best relightable configuration, which
+        # need not be its best overall (a baked probe volume beside the relit one).
+        relit = family_rows([p for p in mine if p.light_class == "relight"],
+                            budget=middle.budget, flips=flips)
         out.append(PanelVerdict(
             scene=scene_label, light=light, panel=panel, blocks=blocks,
             conclusion=conclusion(middle.rows, budget=middle.budget, scene=scene_label,
                                   relight_only=False),
-            relight_conclusion=conclusion(middle.rows, budget=middle.budget, scene=scene_label,
+            relight_conclusion=conclusion(relit, budget=middle.budget, scene=scene_label,
                                           relight_only=True)))
     return out, skipped
 

@@ -171,3 +171,22 @@ def test_verdict_on_a_file_scene_measures_what_the_store_lacks_then_only_reads(
     assert re.search(r"at 8 MiB, vertex \(SH PRT, relight\) (beats every engine baseline; the "
                      r"closest,|ties with the engine baseline|is beaten by the engine baseline) "
                      r"ao-bent-normal", md)
+
+
+def test_under_a_changing_sky_a_family_stands_by_its_relightable_configuration(tmp_path):
+    # The probe volume's best at 8 MiB is baked (fixed, 28 dB); relit it reaches 25.5 dB, which
+    # the changing-sky conclusion must weigh against texture-tpfl (24 dB), not drop the family.
+    store = ResultsStore(tmp_path / "store.sqlite")
+    rows = (_noisy("texture-tpfl", {"texture_resolution": 256}, 24.0, memory=6 * MiB)
+            + _noisy("probe-volume", {"light_mode": "fixed"}, 28.0, memory=int(0.4 * MiB))
+            + _noisy("probe-volume", {"light_mode": "relight"}, 25.5, memory=int(0.3 * MiB)))
+    for r in rows:
+        r.light_class = "fixed" if r.config.get("light_mode") == "fixed" else "relight"
+        r.split = "held-out"
+    store.append(rows)
+    pv, = verdict(scenes=["plants"], light="sky", results_path=store.path,
+                  reports_dir=tmp_path / "r", measure=False).panels
+    assert "is beaten by the engine baseline probe-volume (probe volume, fixed), by 4.00" in (
+        pv.conclusion)
+    assert ("is beaten by the relightable engine baseline probe-volume (probe volume, relight), "
+            "by 1.50") in pv.relight_conclusion
