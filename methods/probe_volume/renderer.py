@@ -136,6 +136,7 @@ class ProbeVolumeRenderer(TargetFrames, Renderer):
         self.program["normal_bias"].value = float(config.normal_bias)
         self.sh_bands = sh_bands
         self.baked_hash, self.baked_name = meta.get("bake_light_hash"), meta.get("bake_light")
+        self.bakes_its_light = self.baked_hash is not None  # another light: a new precompute
         self.visibility = arrays.get("visibility")
         self.folded: str | None = None
         if self.relight:

@@ -103,6 +103,8 @@ class TextureRenderer(TargetFrames, Renderer):
         self.triple = _triple.TripleProductBuffers(
             ctx, self.sh_bands, gamma=product == "tp" and self.cpca is None)
         self._light_bound = None
+        # Bounce textures bake one light: another light is a new precompute (no light change).
+        self.bakes_its_light = bool(self.meta.get("bounces"))
 
     # -- setup ------------------------------------------------------------------------------
     def _texture_array(self, layers: np.ndarray, filter_):

@@ -86,3 +86,20 @@ def test_baked_lights_make_the_fixed_light_class():
     texture = METHODS.get("texture-tpfl")
     assert texture.light_class_of(texture.Config(bounces=1)) == "fixed"
     assert texture.light_class_of(texture.Config(bounces=0)) == "relight"
+
+
+@pytest.mark.parametrize("method, overrides", [
+    ("lightmap", {"bake_light": "sky"}),
+    ("probe-volume", {"light_mode": "fixed", "bake_light": "sky"}),
+    ("texture-tpfl", {"bounces": 1, "bounce_light": "sky"}),
+])
+def test_a_renderer_that_bakes_its_light_runs_and_times_no_light_change(method, overrides):
+    # It refuses any other light, so a light change is a new precompute: the run succeeds
+    # (before, timing the change with a fresh light failed every such run) and stores no
+    # light_change_ms.
+    from prtbench.bench.runner import execute
+
+    job = Job(method=method, scene="sphere-over-plane", variant="diffuse", views=1,
+              profile="smoke", overrides=overrides, reference="method:vertex")
+    summary = execute(prepare(job, store=False, profile="smoke"), progress=False, echo=False)
+    assert summary.status == "ok" and summary.light_change_ms is None
