@@ -10,12 +10,11 @@ unfactored transfer at each gloss.
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from prtbench.bench.job import Job
 from prtbench.bench.reproduction import Reproduction
+from reproductions.shared import row_config
 
 #: Phong exponents s of the sphere, from broad to sharp lobes.
 SHININESS = (8, 32, 128, 512)
@@ -74,8 +73,7 @@ class FactoredGlossTable(Reproduction):
                 hi = float(np.mean(part["psnr_masked_hi"])) if "psnr_masked_hi" in part else psnr
                 loss = (psnr - float(np.mean(matrix["metric_psnr_masked"]))
                         if len(matrix) and label != "sloan-matrix" else "")
-                config = part["config"].iloc[0]
-                config = json.loads(config) if isinstance(config, str) else dict(config)
+                config = row_config(part)
                 rows.append([s, label, psnr, f"{lo:.2f}–{hi:.2f}",
                              float(np.mean(part["metric_flip_masked"])), loss,
                              int(config.get("sh_bands", 0)),

@@ -52,7 +52,7 @@ from prtbench.tradeoff.budget import (
     best_within,
     mark_rows,
 )
-from prtbench.tradeoff.dominance import better_beyond, paired_difference
+from prtbench.tradeoff.dominance import paired_difference
 from prtbench.tradeoff.front import Point, knobs_text
 from prtbench.tradeoff.pareto import light_points, open_selection
 from prtbench.tradeoff.sweep import run_cells
@@ -188,8 +188,6 @@ def family_rows(points: Sequence[Point], *, budget: Budget,
         else:  # none fits: the cheapest the family has
             priced = [r for r in rows if r.cheapest is not None]
             best = (min(priced, key=lambda r: r.cheapest.cost) if priced else rows[0])
-        best = BudgetRow(method=best.method, panel=best.panel, point=best.point,
-                         cheapest=best.cheapest, note=best.note)
         out.append(FamilyRow(family=family, engine=family_of(best.method)[1], row=best,
                              flip=flips.get(_key(best.point)) if best.point else None))
     out.sort(key=lambda f: (0, -f.point.error, f.point.cost) if f.point
@@ -199,21 +197,28 @@ def family_rows(points: Sequence[Point], *, budget: Budget,
 
 
 def difference_text(a: Point, b: Point) -> tuple[str, float, float]:
-    """``beats … by X ± Y dB`` / ``is beaten by`` / ``ties with``: ``a`` against ``b``."""
+    """``beats`` / ``is beaten by`` / ``ties with``: ``a`` against ``b`` beyond the paired
+    interval (:func:`~prtbench.tradeoff.dominance.paired_difference`, whose half-width is taken
+    in the direction of the difference, so this is
+    :func:`~prtbench.tradeoff.dominance.better_beyond` either way round), with the mean
+    difference and that half-width."""
     mean, half = paired_difference(a, b, higher_is_better=True)
-    if better_beyond(a, b, higher_is_better=True):
-        word = "beats"
-    elif better_beyond(b, a, higher_is_better=True):
-        word = "is beaten by"
-    else:
-        word = "ties with"
+    word = ("beats" if mean - half > 0.0 else "is beaten by" if mean + half < 0.0
+            else "ties with")
     return word, mean, half
 
 
+def _candidates(rows: Sequence[FamilyRow], *, engine: bool, relight_only: bool
+                ) -> list[FamilyRow]:
+    """The rows with a configuration within budget of PRT (``engine`` False) or of the engine
+    baselines, relightable ones only with ``relight_only``."""
+    return [f for f in rows if f.point is not None and f.engine == engine
+            and (not relight_only or f.point.light_class == "relight")]
+
+
 def _best(rows: Sequence[FamilyRow], *, engine: bool, relight_only: bool) -> FamilyRow | None:
-    chosen = [f for f in rows if f.point is not None and f.engine == engine
-              and (not relight_only or f.point.light_class == "relight")]
-    return max(chosen, key=lambda f: (f.point.error, -f.point.cost), default=None)
+    return max(_candidates(rows, engine=engine, relight_only=relight_only),
+               key=lambda f: (f.point.error, -f.point.cost), default=None)
 
 
 def _opponent(prt: FamilyRow, engines: Sequence[FamilyRow]) -> tuple[FamilyRow, str, float, float]:
@@ -234,8 +239,7 @@ def conclusion(rows: Sequence[FamilyRow], *, budget: Budget, scene: str,
     baselines, paired beyond the intervals (:func:`_opponent`)."""
     what = "relightable " if relight_only else ""
     prt = _best(rows, engine=False, relight_only=relight_only)
-    engines = [f for f in rows if f.point is not None and f.engine
-               and (not relight_only or f.point.light_class == "relight")]
+    engines = _candidates(rows, engine=True, relight_only=relight_only)
     at = f"at {budget.text}"
     if prt is None and not engines:
         return f"{at}, no {what}configuration fits on {scene}"
